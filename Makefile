@@ -1,0 +1,41 @@
+# jarvis-pytest: every target installs what it needs by itself.
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+JARVIS := $(BIN)/jarvis
+AGENT ?= oracle
+WORKERS ?= 2
+PYTEST_ARGS ?=
+STAMP := $(VENV)/.installed
+
+.PHONY: setup engine images test bench clean-devices
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install -q --upgrade pip
+	$(BIN)/pip install -q -e '.[test]'
+	touch $(STAMP)
+
+## setup: create .venv with the package (editable) and its test dependencies
+setup: $(STAMP)
+
+## engine: make sure a Docker engine answers (installs Debian's docker.io and starts dockerd when root)
+engine: setup
+	$(JARVIS) engine ensure
+
+## images: build the device images (only what changed since the last build)
+images: engine
+	$(JARVIS) images build
+
+## test: the project's own tests, container tests included
+test: images
+	$(BIN)/pytest -p no:cacheprovider tests -n $(WORKERS) $(PYTEST_ARGS)
+
+## bench: run the benchmark with the default agent on the default devices and write a report
+bench: images
+	$(BIN)/pytest tasks -n $(WORKERS) --agent $(AGENT) $(PYTEST_ARGS)
+
+## clean-devices: remove containers and networks a crashed run left behind
+clean-devices: setup
+	$(JARVIS) cleanup

@@ -1,0 +1,1 @@
+"""Environment control: one device API over every platform (paper §3.2)."""

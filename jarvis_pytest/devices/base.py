@@ -1,0 +1,58 @@
+"""The platform-independent device interface. Backends (Ubuntu container now; Windows, Android later) implement it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+from jarvis_pytest.devices.actions import Action
+
+
+@dataclass(frozen=True)
+class Observation:
+    """What an agent sees of one device at one step."""
+
+    platform: str
+    screenshot_png: bytes
+    width: int
+    height: int
+    a11y_tree: str | None = None
+    available: bool = True  # False: a device the task does not use (initial screenshot only)
+
+
+@dataclass(frozen=True)
+class ActionOutcome:
+    """What executing one action did. `error` is fed back to the agent's history, never raised."""
+
+    ok: bool
+    error: str | None = None
+    elapsed_ms: float = 0.0
+
+
+@dataclass(frozen=True)
+class CommandResult:
+    returncode: int
+    stdout: str
+    stderr: str
+    extra: dict = field(default_factory=dict)
+
+
+@runtime_checkable
+class Device(Protocol):
+    """One device of a task: observe, act, move files, run commands."""
+
+    platform: str
+
+    def observe(self, *, a11y: bool = False) -> Observation: ...
+
+    def act(self, action: Action) -> ActionOutcome: ...
+
+    def screen_size(self) -> tuple[int, int]: ...
+
+    def upload(self, path: str, data: bytes) -> None: ...
+
+    def download(self, path: str) -> bytes: ...
+
+    def run(self, command: str, *, timeout: float = 60.0, user: str | None = None) -> CommandResult: ...
+
+    def launch(self, app: str, *args: str) -> None: ...
