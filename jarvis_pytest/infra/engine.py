@@ -1,0 +1,100 @@
+"""Make sure a Docker engine answers: install Debian's docker.io and start dockerd when we are root.
+
+`jarvis engine ensure` is what `make` calls. Anything it cannot do itself it explains: which command to run.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import docker
+
+from jarvis_pytest.errors import InfrastructureError
+
+DOCKERD_LOG = Path("/var/log/jarvis-dockerd.log")
+
+
+def client(timeout: int = 120) -> docker.DockerClient:
+    """A Docker client for the local engine (raises InfrastructureError with the fix when none answers)."""
+    try:
+        c = docker.from_env(timeout=timeout)
+        c.ping()
+        return c
+    except Exception as exc:  # docker raises several unrelated types here
+        raise InfrastructureError(
+            f"no Docker engine answers ({exc.__class__.__name__}: {exc}); run `make engine` "
+            "(as root it installs Debian's docker.io and starts dockerd)"
+        ) from exc
+
+
+def _ping() -> bool:
+    try:
+        docker.from_env(timeout=5).ping()
+        return True
+    except Exception:
+        return False
+
+
+def _apt_install(*packages: str) -> None:
+    env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
+    print(f"[engine] apt-get install {' '.join(packages)}", flush=True)
+    subprocess.run(["apt-get", "update", "-q"], check=True, env=env, stdout=subprocess.DEVNULL)
+    subprocess.run(["apt-get", "install", "-y", "-q", *packages], check=True, env=env, stdout=subprocess.DEVNULL)
+
+
+def ensure_debian_packages(*packages_by_command: tuple[str, str]) -> None:
+    """Install (command, package) pairs whose command is missing, when root; otherwise explain."""
+    missing = [pkg for cmd, pkg in packages_by_command if shutil.which(cmd) is None]
+    if not missing:
+        return
+    if os.geteuid() != 0 or shutil.which("apt-get") is None:
+        raise InfrastructureError(f"missing Debian packages {missing}; run: sudo apt-get install -y {' '.join(missing)}")
+    _apt_install(*missing)
+
+
+def ensure_engine(wait_seconds: float = 60.0) -> None:
+    """Return once a Docker engine answers; install and start one if we can, else raise with the fix."""
+    if _ping():
+        return
+    is_root = os.geteuid() == 0
+    if shutil.which("dockerd") is None:
+        if not is_root or shutil.which("apt-get") is None:
+            raise InfrastructureError(
+                "no Docker engine: install one (Debian: `sudo apt-get install -y docker.io`), start it "
+                "(`sudo systemctl start docker` or `sudo dockerd &`), and let your user reach it "
+                "(`sudo usermod -aG docker $USER`, then log in again)"
+            )
+        ensure_debian_packages(("dockerd", "docker.io"), ("iptables", "iptables"))
+    if not is_root:
+        raise InfrastructureError(
+            "the Docker engine is installed but not answering: start it (`sudo systemctl start docker` "
+            "or `sudo dockerd &`) and check that your user is in the `docker` group"
+        )
+    if Path("/run/systemd/system").is_dir() and shutil.which("systemctl"):
+        subprocess.run(["systemctl", "start", "docker"], check=False)
+    if not _ping():
+        print(f"[engine] starting dockerd (log: {DOCKERD_LOG})", flush=True)
+        log = open(DOCKERD_LOG, "ab")
+        subprocess.Popen(["dockerd"], stdout=log, stderr=log, stdin=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.monotonic() + wait_seconds
+    while time.monotonic() < deadline:
+        if _ping():
+            print("[engine] Docker engine is up", flush=True)
+            return
+        time.sleep(0.5)
+    tail = DOCKERD_LOG.read_text(errors="replace")[-2000:] if DOCKERD_LOG.exists() else ""
+    raise InfrastructureError(f"dockerd did not answer within {wait_seconds:.0f} s; last log lines:\n{tail}")
+
+
+def main_ensure(_args=None) -> int:
+    try:
+        ensure_engine()
+    except InfrastructureError as exc:
+        print(f"jarvis engine: error: {exc}", file=sys.stderr)
+        return 1
+    return 0
