@@ -1,0 +1,122 @@
+"""The built-in agents: `oracle` (the tasks' reference solutions), `noop` (DONE at once), `replay` (a trajectory)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from jarvis_pytest.agents.protocol import AgentStep, HistoryEntry, TaskContext
+from jarvis_pytest.devices.actions import Done, Fail, parse_action
+from jarvis_pytest.devices.base import Device, Observation
+from jarvis_pytest.errors import ConfigError
+
+
+class NoopAgent:
+    """Declares success immediately: the floor every evaluator must fail (QC's "not already solved")."""
+
+    name = "noop"
+
+    def __init__(self, options: dict[str, Any] | None = None):
+        self.options = dict(options or {})
+
+    def reset(self, task: TaskContext) -> None:
+        pass
+
+    def act(self, observations: dict[str, Observation], history: list[HistoryEntry]) -> AgentStep:
+        return AgentStep(platform=None, action=Done(), reasoning="noop agent: done without acting")
+
+    def config(self) -> dict[str, Any]:
+        return {"name": self.name}
+
+
+class OracleAgent:
+    """Executes each subtask's reference solution with its slot values bound.
+
+    A solution step is either `{"action": {...}}` (an action of the unified action space, sent through the
+    harness like any agent's action) or `{"command": "...", "user": ..., "platform": ...}` (run on the device
+    directly; the oracle is the one agent the harness hands its devices, through `attach_devices`). A step's
+    platform defaults to its subtask's platform. A failing command ends the task with FAIL and the command's
+    output as reasoning, so a broken solution is visible in the trajectory.
+    """
+
+    name = "oracle"
+
+    def __init__(self, options: dict[str, Any] | None = None):
+        self.options = dict(options or {})
+        self.devices: dict[str, Device] = {}
+        self.queue: list[tuple[str, dict[str, Any]]] = []
+
+    def reset(self, task: TaskContext) -> None:
+        self.queue = [
+            (step.get("platform") or sub["platform"], step)
+            for sub in task.subtasks
+            for step in sub.get("solution", [])
+        ]
+
+    def attach_devices(self, devices: dict[str, Device]) -> None:
+        self.devices = devices
+
+    def act(self, observations: dict[str, Observation], history: list[HistoryEntry]) -> AgentStep:
+        commands: list[dict[str, Any]] = []
+        while self.queue:
+            platform, step = self.queue.pop(0)
+            if "action" in step:
+                return AgentStep(platform=platform, action=parse_action(step["action"]),
+                                 reasoning=step.get("note", "oracle solution step"), extra={"commands": commands})
+            result = self.devices[platform].run(step["command"], user=step.get("user"),
+                                                timeout=float(step.get("timeout", 120)))
+            commands.append({"platform": platform, "command": step["command"], "returncode": result.returncode})
+            if result.returncode != 0:
+                return AgentStep(platform=platform, action=Fail(), extra={"commands": commands},
+                                 reasoning=f"oracle command failed ({result.returncode}): {step['command']}\n"
+                                           f"{result.stdout[-1000:]}{result.stderr[-1000:]}")
+        return AgentStep(platform=None, action=Done(), reasoning="oracle solution complete",
+                         extra={"commands": commands})
+
+    def config(self) -> dict[str, Any]:
+        return {"name": self.name}
+
+
+class ReplayAgent:
+    """Replays the actions of a recorded `traj.jsonl` (option `file`), then DONE."""
+
+    name = "replay"
+
+    def __init__(self, options: dict[str, Any] | None = None):
+        self.options = dict(options or {})
+        path = self.options.get("file")
+        if not path:
+            raise ConfigError("the replay agent needs a trajectory file", field="--agent-option file",
+                              fix="pass --agent-option file=reports/<run>/tasks/<task>/traj.jsonl")
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise ConfigError("no such trajectory file", path=self.path, field="--agent-option file",
+                              fix="point it at an existing traj.jsonl")
+        self.steps: list[dict[str, Any]] = []
+
+    def reset(self, task: TaskContext) -> None:
+        self.steps = []
+        for n, line in enumerate(self.path.read_text().splitlines(), 1):
+            if not line.strip():
+                continue
+            try:
+                rec = json.loads(line)
+            except json.JSONDecodeError as exc:
+                raise ConfigError(f"line {n} is not JSON ({exc})", path=self.path,
+                                  fix="use a traj.jsonl written by jarvis-pytest") from exc
+            if rec.get("action") and rec["action"].get("type") not in ("DONE", "FAIL"):
+                self.steps.append(rec)
+
+    def act(self, observations: dict[str, Observation], history: list[HistoryEntry]) -> AgentStep:
+        if not self.steps:
+            return AgentStep(platform=None, action=Done(), reasoning="replay finished")
+        rec = self.steps.pop(0)
+        return AgentStep(platform=rec.get("platform"), action=parse_action(rec["action"]),
+                         reasoning=rec.get("reasoning", ""), raw_output=rec.get("raw_output", ""))
+
+    def config(self) -> dict[str, Any]:
+        return {"name": self.name, "file": str(self.path)}
+
+
+BUILTIN_AGENTS = {"oracle": OracleAgent, "noop": NoopAgent, "replay": ReplayAgent}

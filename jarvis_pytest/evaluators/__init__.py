@@ -1,0 +1,10 @@
+"""Evaluators: parameterised checks of a task's final state (paper §3.1 "Dynamic Evaluation").
+
+An evaluator is a plain function registered by name with `@evaluator("name")`. It receives the `FinalState` of
+the subtask (devices, transfer drive, pulled files) and the subtask's rendered arguments, and returns a
+`Verdict` whose reason says what was expected and what was found. Getters that pull state to the host live in
+`state.py`; checks live in topic modules (`files.py`, ...). Importing this package registers all of them.
+"""
+
+from jarvis_pytest.evaluators.registry import EVALUATORS, Verdict, evaluator, get_evaluator  # noqa: F401
+from jarvis_pytest.evaluators import files  # noqa: F401,E402  (registers)

@@ -1,0 +1,49 @@
+"""The final state of a task as evaluators see it: getters that pull files and facts from the devices to the host.
+
+Pulled files are cached for the evaluation of one task, so several evaluators of one file cost one download.
+Getters return `None` for a file that does not exist, so checks can say "found no file".
+"""
+
+from __future__ import annotations
+
+import shlex
+from dataclasses import dataclass, field
+from typing import Any
+
+from jarvis_pytest.devices.base import Device
+from jarvis_pytest.errors import InfrastructureError
+
+
+@dataclass
+class FinalState:
+    """Access to the final state of one subtask: its platform's device, the other devices, the transfer drive."""
+
+    platform: str
+    devices: dict[str, Device]
+    transfer: Any = None  # the transfer-drive client (list/download), when the task has one
+    _files: dict[tuple[str, str], bytes | None] = field(default_factory=dict)
+
+    def device(self, platform: str | None = None) -> Device:
+        name = platform or self.platform
+        try:
+            return self.devices[name]
+        except KeyError:
+            raise InfrastructureError(f"evaluator needs the {name} device, which this task did not boot") from None
+
+    def run(self, command: str, platform: str | None = None, user: str | None = None):
+        """Run a shell command on the device (as the desktop user unless `user` is given)."""
+        return self.device(platform).run(command, user=user)
+
+    def exists(self, path: str, platform: str | None = None) -> bool:
+        return self.run(f"test -e {shlex.quote(path)}", platform).returncode == 0
+
+    def pull(self, path: str, platform: str | None = None) -> bytes | None:
+        """The bytes of a file on the device, or None when it does not exist."""
+        key = (platform or self.platform, path)
+        if key not in self._files:
+            self._files[key] = self.device(platform).download(path) if self.exists(path, platform) else None
+        return self._files[key]
+
+    def pull_text(self, path: str, platform: str | None = None) -> str | None:
+        data = self.pull(path, platform)
+        return None if data is None else data.decode("utf-8", errors="replace")

@@ -1,0 +1,47 @@
+"""Evaluate every evaluator of every subtask on the final state — all of them, even after one fails (SSR)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from jarvis_pytest.devices.base import Device
+from jarvis_pytest.errors import ConfigError, InfrastructureError
+from jarvis_pytest.evaluators import get_evaluator
+from jarvis_pytest.evaluators.state import FinalState
+from jarvis_pytest.results.model import EvaluatorVerdict, SubtaskVerdict
+
+
+def evaluate_subtasks(subtasks: list[dict[str, Any]], devices: dict[str, Device], transfer: Any) -> list[SubtaskVerdict]:
+    """Verdicts per subtask. An evaluator that raises (other than an infrastructure error) fails with its error."""
+    verdicts: list[SubtaskVerdict] = []
+    for index, sub in enumerate(subtasks):
+        state = FinalState(platform=sub["platform"], devices=devices, transfer=transfer)
+        results: list[EvaluatorVerdict] = []
+        for spec in sub.get("evaluate", []):
+            func_name = spec.get("func")
+            args = dict(spec.get("args", {}))
+            try:
+                verdict = get_evaluator(func_name)(state, **args)
+                passed, reason = verdict.passed, verdict.reason
+            except (InfrastructureError, ConfigError):
+                raise
+            except Exception as exc:  # an evaluator bug or an unreadable file is a failed check, with its reason
+                passed, reason = False, f"evaluator raised {exc.__class__.__name__}: {exc}"
+            results.append(EvaluatorVerdict(func=func_name, args=args, passed=passed, reason=reason))
+        verdicts.append(SubtaskVerdict(index=index, template=sub.get("template", ""), platform=sub["platform"],
+                                       passed=bool(results) and all(r.passed for r in results), evaluators=results))
+    return verdicts
+
+
+def failure_message(verdicts: list[SubtaskVerdict], end_reason: str, steps: int) -> str:
+    """The assertion message: each failed subtask with its evaluators' reasons."""
+    failed = [v for v in verdicts if not v.passed]
+    lines = [f"{len(failed)}/{len(verdicts)} subtasks failed (agent stopped: {end_reason} after {steps} steps)"]
+    for v in failed:
+        lines.append(f"  subtask {v.index} {v.template} on {v.platform}:")
+        if not v.evaluators:
+            lines.append("    no evaluator (a task without evaluators cannot pass)")
+        for e in v.evaluators:
+            if not e.passed:
+                lines.append(f"    {e.func}: {e.reason}")
+    return "\n".join(lines)

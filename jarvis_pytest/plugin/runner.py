@@ -1,0 +1,101 @@
+"""Run one task end to end: boot its devices, set them up, drive the agent, evaluate, write the results."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+from jarvis_pytest.agents.protocol import Agent, TaskContext
+from jarvis_pytest.devices.actions import PLATFORMS
+from jarvis_pytest.devices.backend import TRANSFER_ALIAS, TRANSFER_PASSWORD, TRANSFER_PORT, TRANSFER_USER
+from jarvis_pytest.errors import ConfigError, InfrastructureError
+from jarvis_pytest.plugin.evaluation import evaluate_subtasks
+from jarvis_pytest.plugin.idle import idle_observation
+from jarvis_pytest.plugin.loop import LoopLimits, run_loop
+from jarvis_pytest.plugin.setup_steps import run_setup
+from jarvis_pytest.results.model import TaskResult
+from jarvis_pytest.results.writer import TaskRecorder
+
+
+def agent_key(agent_config: dict[str, Any], limits: LoopLimits) -> str:
+    """A stable hash of what decides an agent's behaviour; --resume reuses only results with the same key."""
+    blob = json.dumps({"agent": agent_config, "max_steps": limits.max_steps}, sort_keys=True, default=str)
+    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+@dataclass
+class RunContext:
+    """What every task of a run (in one worker process) shares."""
+
+    run_dir: Path
+    agent: Agent
+    environments: Any  # jarvis_pytest.infra pool: acquire(platforms) -> environment, prewarm(platforms), close()
+    limits: LoopLimits = field(default_factory=LoopLimits)
+    keep_devices: bool = False
+    on_keep: Callable[[Any], None] | None = None
+
+    @property
+    def agent_config(self) -> dict[str, Any]:
+        return self.agent.config()
+
+
+def task_platforms(task: dict[str, Any]) -> tuple[str, ...]:
+    """The device platforms a task needs, sorted."""
+    return tuple(sorted(set(task.get("devices") or [s["platform"] for s in task["formatted_subtasks"]])))
+
+
+def run_task(task: dict[str, Any], ctx: RunContext) -> TaskResult:
+    """Run `task` (one entry of the dataset format) and return its result; raises on infrastructure errors
+    after recording them in result.json with status "error"."""
+    platforms = task_platforms(task)
+    subtasks = task["formatted_subtasks"]
+    config = ctx.agent_config
+    result = TaskResult(task_id=task["id"], category=task.get("category", "atomic"), platforms=list(platforms),
+                        instruction=task["instruction"], status="running", agent=config,
+                        agent_key=agent_key(config, ctx.limits))
+    recorder = TaskRecorder(ctx.run_dir, result)
+    t_start = time.monotonic()
+    env = None
+    try:
+        env = ctx.environments.acquire(platforms)
+        result.image_ids = dict(env.image_ids)
+        t_boot = time.monotonic()
+        run_setup(subtasks, env.devices)
+        t_setup = time.monotonic()
+        transfer = {"url": f"http://{TRANSFER_ALIAS}:{TRANSFER_PORT}", "user": TRANSFER_USER,
+                    "password": TRANSFER_PASSWORD}
+        ctx.agent.reset(TaskContext(task_id=task["id"], instruction=task["instruction"], platforms=platforms,
+                                    transfer=transfer, subtasks=tuple(subtasks)))
+        if hasattr(ctx.agent, "attach_devices"):
+            ctx.agent.attach_devices(env.devices)
+        idle = {p: idle_observation(p) for p in PLATFORMS if p not in env.devices}
+        outcome = run_loop(ctx.agent, env.devices, idle, recorder, ctx.limits)
+        for platform, device in sorted(env.devices.items()):
+            recorder.screenshot(outcome.steps, platform, device.observe().screenshot_png)
+        t_loop = time.monotonic()
+        result.steps, result.end_reason, result.usage = outcome.steps, outcome.end_reason, outcome.usage
+        result.subtasks = evaluate_subtasks(subtasks, env.devices, env.transfer)
+        t_eval = time.monotonic()
+        result.status = "passed" if result.subtasks and all(s.passed for s in result.subtasks) else "failed"
+        result.durations = {"boot": t_boot - t_start, "setup": t_setup - t_boot, "agent": outcome.agent_seconds,
+                            "loop": t_loop - t_setup, "evaluate": t_eval - t_loop, "total": t_eval - t_start}
+        return result
+    except (InfrastructureError, ConfigError) as exc:
+        result.status, result.end_reason, result.error = "error", "error", str(exc)
+        result.durations["total"] = time.monotonic() - t_start
+        raise
+    except BaseException as exc:  # interrupted or a harness bug: keep what we have, marked as an error
+        result.status, result.end_reason = "error", "error"
+        result.error = f"{exc.__class__.__name__}: {exc}"
+        raise
+    finally:
+        recorder.finish()
+        if env is not None:
+            if ctx.keep_devices and ctx.on_keep:
+                ctx.on_keep(env)
+            else:
+                env.close()

@@ -1,0 +1,85 @@
+"""The result files of a run; every consumer (rollup, HTML report, dashboard, --resume) reads these models.
+
+Layout of a run directory::
+
+    <run dir>/run.json                       run id, agent configuration, options, start time
+    <run dir>/tasks/<safe task id>/traj.jsonl  one `StepRecord` per line, appended as the task runs
+    <run dir>/tasks/<safe task id>/step_0003_ubuntu.png
+    <run dir>/tasks/<safe task id>/result.json  a `TaskResult`, written when the task ends (status "running" before)
+    <run dir>/summary.json, summary.md, report.html
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, Field
+
+Status = Literal["running", "passed", "failed", "error"]
+
+
+class EvaluatorVerdict(BaseModel):
+    """One evaluator of one subtask on the final state."""
+
+    func: str
+    args: dict[str, Any] = Field(default_factory=dict)
+    passed: bool
+    reason: str
+
+
+class SubtaskVerdict(BaseModel):
+    """A subtask passes iff all its evaluators pass (paper eq. 1)."""
+
+    index: int
+    template: str
+    platform: str
+    passed: bool
+    evaluators: list[EvaluatorVerdict] = Field(default_factory=list)
+
+    @property
+    def reasons(self) -> list[str]:
+        return [f"{v.func}: {v.reason}" for v in self.evaluators if not v.passed]
+
+
+class StepRecord(BaseModel):
+    """One line of traj.jsonl."""
+
+    index: int
+    platform: str | None
+    action: dict[str, Any] | None
+    reasoning: str = ""
+    raw_output: str = ""
+    error: str | None = None
+    screenshots: dict[str, str] = Field(default_factory=dict)  # platform → file name (observation before acting)
+    agent_ms: float = 0.0
+    exec_ms: float = 0.0
+    observe_ms: float = 0.0
+    usage: dict[str, int] = Field(default_factory=dict)
+    extra: dict[str, Any] = Field(default_factory=dict)
+
+
+class TaskResult(BaseModel):
+    """result.json of one task."""
+
+    task_id: str
+    category: str  # atomic | sw | mi | md
+    platforms: list[str]
+    instruction: str
+    status: Status
+    agent: dict[str, Any] = Field(default_factory=dict)  # agent name + configuration (no secrets)
+    agent_key: str = ""  # hash of the agent configuration, for --resume
+    subtasks: list[SubtaskVerdict] = Field(default_factory=list)
+    steps: int = 0
+    end_reason: str = ""  # done | fail | max_steps | timeout | error
+    error: str | None = None  # infrastructure error text when status == "error"
+    durations: dict[str, float] = Field(default_factory=dict)  # boot, setup, agent, evaluate, total (seconds)
+    usage: dict[str, int] = Field(default_factory=dict)
+    image_ids: dict[str, str] = Field(default_factory=dict)
+    first_screenshot: str | None = None
+    last_screenshot: str | None = None
+    started: str = ""
+    finished: str = ""
+
+    @property
+    def passed_subtasks(self) -> int:
+        return sum(1 for s in self.subtasks if s.passed)

@@ -1,0 +1,76 @@
+"""Write a task's results as it runs, so an interrupted run keeps everything finished so far."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from datetime import datetime, timezone
+from pathlib import Path
+
+from jarvis_pytest.results.model import StepRecord, TaskResult
+
+
+def safe_name(task_id: str) -> str:
+    """A file-system-safe directory name for a task id (`ubuntu-calc-sort[seed0]` → `ubuntu-calc-sort_seed0`)."""
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", task_id).strip("_")
+
+
+def now_iso() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+def write_json_atomic(path: Path, data: object) -> None:
+    """Write JSON through a temporary file and a rename: readers never see half a file."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(data, indent=2, sort_keys=True, ensure_ascii=False) + "\n")
+    os.replace(tmp, path)
+
+
+def task_dir(run_dir: Path, task_id: str) -> Path:
+    return run_dir / "tasks" / safe_name(task_id)
+
+
+def read_result(run_dir: Path, task_id: str) -> TaskResult | None:
+    """The stored result of a task, or None when absent or unreadable."""
+    path = task_dir(run_dir, task_id) / "result.json"
+    try:
+        return TaskResult.model_validate_json(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+class TaskRecorder:
+    """Appends trajectory lines and screenshots, and (re)writes result.json, for one task."""
+
+    def __init__(self, run_dir: Path, result: TaskResult):
+        self.dir = task_dir(run_dir, result.task_id)
+        if self.dir.exists():  # a rerun of this task replaces its earlier files
+            for p in self.dir.iterdir():
+                if p.is_file():
+                    p.unlink()
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.result = result
+        self.result.started = self.result.started or now_iso()
+        self._traj = open(self.dir / "traj.jsonl", "a", encoding="utf-8")
+        self.save_result()
+
+    def screenshot(self, step: int, platform: str, png: bytes) -> str:
+        name = f"step_{step:04d}_{platform}.png"
+        (self.dir / name).write_bytes(png)
+        if self.result.first_screenshot is None:
+            self.result.first_screenshot = name
+        self.result.last_screenshot = name
+        return name
+
+    def step(self, record: StepRecord) -> None:
+        self._traj.write(record.model_dump_json() + "\n")
+        self._traj.flush()
+
+    def save_result(self) -> None:
+        write_json_atomic(self.dir / "result.json", self.result.model_dump(mode="json"))
+
+    def finish(self) -> None:
+        self.result.finished = now_iso()
+        self.save_result()
+        self._traj.close()
