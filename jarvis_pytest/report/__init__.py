@@ -1,0 +1,1 @@
+"""Reporting: the paper's TSR/SSR tables rolled up from per-task results."""
