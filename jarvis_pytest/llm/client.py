@@ -1,0 +1,217 @@
+"""A small client for OpenAI-compatible chat endpoints (vLLM, DashScope compatible mode, Kimi, OpenAI, ...).
+
+Usage::
+
+    client = ChatClient("http://127.0.0.1:8000/v1", "Qwen/Qwen3-VL-30B-A3B-Instruct", api_key=None)
+    result = client.chat([user_message("Describe the screen.", image_part(png_bytes))], temperature=0)
+    result.text    # the assistant's answer ("" when it sent none)
+    result.usage   # {"prompt_tokens": ..., "completion_tokens": ..., "total_tokens": ...}
+
+What it does for you: images travel as base64 ``data:`` URLs; every request has a timeout; 429, 5xx, timeouts and
+connection errors are retried with exponential backoff (``Retry-After`` is honoured); at most ``max_concurrency``
+requests per endpoint are in flight across all threads of the process. When the endpoint still fails after the
+retries, or answers something that is not a chat completion, it raises
+:class:`jarvis_pytest.errors.InfrastructureError` (the harness counts that as an infrastructure error, not as an
+agent failure). The API key is sent as ``Authorization: Bearer`` and appears in no message, repr or log.
+"""
+
+from __future__ import annotations
+
+import base64
+import random
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import httpx
+
+from jarvis_pytest.errors import InfrastructureError
+
+#: HTTP statuses worth another try: rate limits, overload, gateway trouble.
+RETRY_STATUSES = frozenset({408, 425, 429, 500, 502, 503, 504, 520, 521, 522, 524, 529})
+USAGE_KEYS = ("prompt_tokens", "completion_tokens", "total_tokens")
+
+_SEMAPHORES: dict[tuple[str, int], threading.BoundedSemaphore] = {}
+_SEMAPHORES_LOCK = threading.Lock()
+
+
+def endpoint_semaphore(base_url: str, limit: int) -> threading.BoundedSemaphore:
+    """The process-wide semaphore of one endpoint and limit: all clients of `base_url` created with the same
+    `max_concurrency` share it, whichever thread uses them."""
+    key = (base_url.rstrip("/"), max(1, int(limit)))
+    with _SEMAPHORES_LOCK:
+        sem = _SEMAPHORES.get(key)
+        if sem is None:
+            sem = _SEMAPHORES[key] = threading.BoundedSemaphore(key[1])
+        return sem
+
+
+def image_part(png: bytes, mime: str = "image/png") -> dict[str, Any]:
+    """An OpenAI ``image_url`` content part carrying the image as a base64 data URL."""
+    data = base64.b64encode(png).decode("ascii")
+    return {"type": "image_url", "image_url": {"url": f"data:{mime};base64,{data}"}}
+
+
+def text_part(text: str) -> dict[str, Any]:
+    """An OpenAI ``text`` content part."""
+    return {"type": "text", "text": text}
+
+
+def user_message(*parts: str | dict[str, Any]) -> dict[str, Any]:
+    """A user message from strings (text parts) and ready-made parts such as :func:`image_part`."""
+    return {"role": "user", "content": [text_part(p) if isinstance(p, str) else p for p in parts]}
+
+
+def system_message(text: str) -> dict[str, Any]:
+    return {"role": "system", "content": text}
+
+
+@dataclass
+class ChatResult:
+    """One chat completion: the answer text, token usage and the endpoint's JSON as received."""
+
+    text: str
+    usage: dict[str, int] = field(default_factory=dict)
+    raw: dict[str, Any] = field(default_factory=dict)
+    attempts: int = 1
+    seconds: float = 0.0
+
+    @property
+    def reasoning(self) -> str:
+        """The separate reasoning text some servers return (vLLM ``reasoning_content``), or ""."""
+        try:
+            msg = self.raw["choices"][0]["message"]
+        except (KeyError, IndexError, TypeError):
+            return ""
+        return msg.get("reasoning_content") or msg.get("reasoning") or ""
+
+
+class _Retry(Exception):
+    def __init__(self, reason: str, wait: float | None = None):
+        super().__init__(reason)
+        self.reason = reason
+        self.wait = wait
+
+
+class ChatClient:
+    """A chat-completions client for one endpoint and model. Thread-safe; reuse one per endpoint.
+
+    ``base_url`` is the API root that ends in ``/v1`` (or DashScope's ``.../compatible-mode/v1``); requests go to
+    ``{base_url}/chat/completions``. ``timeout`` is per attempt, in seconds. ``max_retries`` counts the extra
+    attempts after the first. ``backoff`` is the first wait (doubled each retry, with jitter, capped at
+    ``max_backoff``). ``params`` are default request parameters (e.g. ``temperature``) merged under each call's.
+    """
+
+    def __init__(self, base_url: str, model: str, api_key: str | None = None, timeout: float = 60.0,
+                 max_retries: int = 4, max_concurrency: int = 4, *, backoff: float = 1.0, max_backoff: float = 30.0,
+                 params: dict[str, Any] | None = None, transport: httpx.BaseTransport | None = None):
+        if not base_url or not base_url.startswith(("http://", "https://")):
+            raise ValueError(f"base_url must be an http(s) URL, got {base_url!r}")
+        self.base_url = base_url.rstrip("/")
+        self.model = model
+        self.timeout = float(timeout)
+        self.max_retries = max(0, int(max_retries))
+        self.max_concurrency = max(1, int(max_concurrency))
+        self.backoff = float(backoff)
+        self.max_backoff = float(max_backoff)
+        self.params = dict(params or {})
+        self._api_key = api_key or None
+        headers = {"Content-Type": "application/json"}
+        if self._api_key:
+            headers["Authorization"] = f"Bearer {self._api_key}"
+        self._http = httpx.Client(headers=headers, timeout=httpx.Timeout(self.timeout), transport=transport)
+        self._semaphore = endpoint_semaphore(self.base_url, self.max_concurrency)
+
+    def __repr__(self) -> str:
+        key = "***" if self._api_key else None
+        return f"ChatClient(base_url={self.base_url!r}, model={self.model!r}, api_key={key!r})"
+
+    def config(self) -> dict[str, Any]:
+        """What identifies this client in results: endpoint and model, never the key."""
+        return {"base_url": self.base_url, "model": self.model}
+
+    def close(self) -> None:
+        self._http.close()
+
+    def __enter__(self) -> ChatClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def chat(self, messages: list[dict[str, Any]], **params: Any) -> ChatResult:
+        """Send one chat completion request; returns the first choice. Raises InfrastructureError after retries."""
+        body = {"model": self.model, "messages": messages, **self.params, **params}
+        url = f"{self.base_url}/chat/completions"
+        started = time.monotonic()
+        last = ""
+        for attempt in range(1, self.max_retries + 2):
+            try:
+                with self._semaphore:
+                    raw = self._once(url, body)
+                return self._result(raw, attempt, time.monotonic() - started)
+            except _Retry as exc:
+                last = exc.reason
+                if attempt > self.max_retries:
+                    break
+                time.sleep(self._wait(attempt, exc.wait))
+        raise InfrastructureError(f"{url} (model {self.model}) failed after {self.max_retries + 1} attempts; "
+                                  f"last error: {last}")
+
+    def _once(self, url: str, body: dict[str, Any]) -> dict[str, Any]:
+        try:
+            resp = self._http.post(url, json=body)
+        except httpx.TimeoutException as exc:
+            raise _Retry(f"timeout after {self.timeout:g} s ({type(exc).__name__})") from None
+        except httpx.TransportError as exc:
+            raise _Retry(f"connection error: {type(exc).__name__}: {exc}") from None
+        if resp.status_code in RETRY_STATUSES:
+            raise _Retry(f"HTTP {resp.status_code}: {_snippet(resp)}", _retry_after(resp))
+        if resp.status_code >= 400:
+            hint = " (check the API key)" if resp.status_code in (401, 403) else ""
+            raise InfrastructureError(f"{url} (model {self.model}) answered HTTP {resp.status_code}{hint}: "
+                                      f"{_snippet(resp)}")
+        try:
+            data = resp.json()
+        except ValueError:
+            raise _Retry(f"HTTP {resp.status_code} with a body that is not JSON: {_snippet(resp)}") from None
+        if not isinstance(data, dict):
+            raise _Retry(f"a JSON body that is not an object: {_snippet(resp)}")
+        return data
+
+    def _result(self, raw: dict[str, Any], attempts: int, seconds: float) -> ChatResult:
+        try:
+            message = raw["choices"][0]["message"]
+        except (KeyError, IndexError, TypeError):
+            raise InfrastructureError(f"{self.base_url} (model {self.model}) answered without choices[0].message: "
+                                      f"{str(raw)[:300]}") from None
+        content = message.get("content")
+        if isinstance(content, list):  # some servers return content parts
+            content = "".join(p.get("text", "") for p in content if isinstance(p, dict))
+        usage_in = raw.get("usage") or {}
+        usage = {k: int(usage_in.get(k) or 0) for k in USAGE_KEYS}
+        if not usage["total_tokens"]:
+            usage["total_tokens"] = usage["prompt_tokens"] + usage["completion_tokens"]
+        return ChatResult(text=content or "", usage=usage, raw=raw, attempts=attempts, seconds=seconds)
+
+    def _wait(self, attempt: int, retry_after: float | None) -> float:
+        if retry_after is not None:
+            return min(max(retry_after, 0.0), self.max_backoff)
+        base = min(self.backoff * (2 ** (attempt - 1)), self.max_backoff)
+        return base * (0.5 + random.random() / 2)
+
+
+def _retry_after(resp: httpx.Response) -> float | None:
+    value = resp.headers.get("retry-after")
+    if value is None:
+        return None
+    try:
+        return float(value)
+    except ValueError:
+        return None  # an HTTP date: fall back to our own backoff
+
+
+def _snippet(resp: httpx.Response, limit: int = 300) -> str:
+    text = resp.text.strip().replace("\n", " ")
+    return text[:limit] + ("..." if len(text) > limit else "")
