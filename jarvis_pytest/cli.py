@@ -12,6 +12,8 @@ from jarvis_pytest.errors import JarvisError
 COMMAND_MODULES = [
     "jarvis_pytest.tasks.commands",
     "jarvis_pytest.infra.commands",
+    "jarvis_pytest.dashboard.commands",
+    "jarvis_pytest.agents.commands",
 ]
 
 

@@ -1,0 +1,113 @@
+"""`jarvis schema`, `jarvis types`, `jarvis templates` and `jarvis compose`."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from pydantic import TypeAdapter
+
+from jarvis_pytest.tasks.compose import compose
+from jarvis_pytest.tasks.dataset import write_dataset
+from jarvis_pytest.tasks.library import load_library
+from jarvis_pytest.tasks.model import TEMPLATE_FILE_SCHEMA_TITLE, Dataset, TaskTemplate
+from jarvis_pytest.tasks.types import load_types
+
+
+def _print_json(data: Any) -> None:
+    print(json.dumps(data, indent=2, sort_keys=True, ensure_ascii=False))
+
+
+def schema(kind: str) -> dict[str, Any]:
+    """The JSON Schema of a template file (`template`) or of a dataset file (`dataset`)."""
+    if kind == "dataset":
+        out = Dataset.model_json_schema(by_alias=True)
+        out["title"] = "jarvis-pytest dataset file"
+    else:
+        out = TypeAdapter(TaskTemplate | list[TaskTemplate]).json_schema(by_alias=True)
+        out["title"] = TEMPLATE_FILE_SCHEMA_TITLE
+    out["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    return out
+
+
+def _schema(args: argparse.Namespace) -> int:
+    _print_json(schema(args.kind))
+    return 0
+
+
+def _types(args: argparse.Namespace) -> int:
+    types = load_types(args.types)
+    if args.json:
+        _print_json(types.to_json())
+    else:
+        print(types.tree())
+    return 0
+
+
+def _evaluator_names() -> list[str]:
+    from jarvis_pytest.evaluators import EVALUATORS
+
+    return sorted(EVALUATORS)
+
+
+def _templates(args: argparse.Namespace) -> int:
+    lib = load_library(args.library, types_path=args.types,
+                       evaluators=_evaluator_names() if args.check_evaluators else None)
+    if args.json:
+        _print_json([t.model_dump(mode="json", exclude_none=True) for t in lib.templates])
+        return 0
+    for t in lib.templates:
+        ins = ", ".join(f"{k}:{v.type}" for k, v in sorted(t.inputs.items()))
+        outs = ", ".join(f"{k}:{v.type}" for k, v in sorted(t.outputs.items()))
+        print(f"{t.id}\t{t.platform}\t{t.app}\t({ins}) -> ({outs})")
+    print(f"{len(lib.templates)} templates, all valid")
+    return 0
+
+
+def _compose(args: argparse.Namespace) -> int:
+    lib = load_library(args.library, types_path=args.types)
+    tasks = compose(lib, seed=args.seed, count=args.count, max_subtasks=args.max_subtasks, balanced=args.balanced)
+    meta = {"generator": "jarvis compose", "seed": args.seed, "count": args.count, "balanced": args.balanced,
+            "max_subtasks": args.max_subtasks, "library_digest": lib.digest()}
+    path = write_dataset(args.out, tasks, meta)
+    counts = {c: sum(t.category == c for t in tasks) for c in ("sw", "mi", "md")}
+    print(f"wrote {len(tasks)} tasks to {path} (" + ", ".join(f"{k.upper()} {v}" for k, v in counts.items()) + ")")
+    return 0
+
+
+def _library_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--library", type=Path, default=Path("tasks"),
+                   help="folder of task templates (<platform>/*.json; default: tasks)")
+    p.add_argument("--types", type=Path, default=None,
+                   help="types file (default: <library>/types.json if present, else the repository's tasks/types.json)")
+
+
+def register(sub: Any) -> None:
+    """Add the task-model subcommands to the `jarvis` parser."""
+    p = sub.add_parser("schema", help="print the JSON Schema of task template files (or of dataset files)")
+    p.add_argument("--kind", choices=("template", "dataset"), default="template")
+    p.set_defaults(func=_schema)
+
+    p = sub.add_parser("types", help="print the slot type hierarchy")
+    p.add_argument("--json", action="store_true", help='print {"type": "parent" | null} for every declared type')
+    p.add_argument("--types", type=Path, default=None, help="types file (default: tasks/types.json)")
+    p.set_defaults(func=_types)
+
+    p = sub.add_parser("templates", help="validate and list the task templates of a library")
+    _library_args(p)
+    p.add_argument("--json", action="store_true", help="print the templates as JSON")
+    p.add_argument("--check-evaluators", action="store_true",
+                   help="also check that every evaluator name is registered")
+    p.set_defaults(func=_templates)
+
+    p = sub.add_parser("compose", help="compose cross-device tasks from the template library (paper, Algorithm 1)")
+    _library_args(p)
+    p.add_argument("--seed", type=int, required=True, help="random seed (same seed and inputs: same file)")
+    p.add_argument("--count", type=int, required=True, help="number of tasks")
+    p.add_argument("--max-subtasks", type=int, default=4,
+                   help="K: most subtasks per task, transfer subtasks included (default 4)")
+    p.add_argument("--balanced", action="store_true", help="equal thirds of SW, MI and MD")
+    p.add_argument("--out", type=Path, required=True, help="dataset file to write")
+    p.set_defaults(func=_compose)

@@ -1,0 +1,136 @@
+"""Instantiation: sample input values from their domains (seeded) and materialise (O, D, Φ) ← M(v_I).
+
+Every random choice goes through a `random.Random` passed in by the caller, and slots are visited in sorted
+order, so equal seeds give equal instances. An atomic instance of template `t` with seed `n` has the id
+``t[seed<n>]`` and draws from ``Random("t#seed<n>")``: adding or removing other templates does not change it.
+"""
+
+from __future__ import annotations
+
+import random
+import re
+from typing import TYPE_CHECKING, Mapping
+
+from pydantic import TypeAdapter
+
+from jarvis_pytest.errors import ConfigError
+from jarvis_pytest.tasks.model import (BoundSlot, EvaluatorSpec, InputSlot, Scalar, SetupStep, SolutionStep, Subtask,
+                                       Task, TaskTemplate)
+from jarvis_pytest.tasks.templating import Where, render_data, render_text
+
+if TYPE_CHECKING:
+    from jarvis_pytest.tasks.library import Library
+
+PATTERN_TOKEN = re.compile(r"\{(?:int:(-?\d+)-(-?\d+)|word)\}")
+WORDS = ("alpha", "amber", "atlas", "birch", "bravo", "cedar", "comet", "coral", "delta", "ember", "falcon", "fern",
+         "garnet", "harbor", "hazel", "indigo", "jasper", "juniper", "kestrel", "lotus", "maple", "meadow", "nova",
+         "onyx", "orchid", "pebble", "quartz", "raven", "river", "saffron", "sierra", "summit", "tango", "topaz",
+         "umber", "velvet", "willow", "zephyr")
+_STEP = TypeAdapter(SetupStep)
+
+
+def check_pattern(pattern: str) -> None:
+    """Raise ValueError unless `pattern` uses only `{int:LO-HI}` and `{word}` tokens."""
+    rest = PATTERN_TOKEN.sub("", pattern)
+    if "{" in rest or "}" in rest:
+        raise ValueError(f"pattern {pattern!r} has a brace that is not a token {{int:LO-HI}} or {{word}}")
+    for m in PATTERN_TOKEN.finditer(pattern):
+        if m.group(1) is not None and int(m.group(1)) > int(m.group(2)):
+            raise ValueError(f"pattern token {m.group(0)} is an empty range")
+
+
+def sample_value(slot: InputSlot, rng: random.Random) -> Scalar:
+    """One value from the slot's domain."""
+    if slot.choices is not None:
+        return rng.choice(slot.choices)
+    if slot.range is not None:
+        return rng.randint(slot.range[0], slot.range[1])
+    if slot.pattern is not None:
+        def token(m: re.Match[str]) -> str:
+            if m.group(1) is not None:
+                return str(rng.randint(int(m.group(1)), int(m.group(2))))
+            return rng.choice(WORDS)
+        return PATTERN_TOKEN.sub(token, slot.pattern)
+    raise ValueError("slot has no sampling domain")
+
+
+def sample_inputs(template: TaskTemplate, rng: random.Random) -> dict[str, Scalar]:
+    """A value for every input slot that has a domain, in sorted slot order."""
+    return {name: sample_value(template.inputs[name], rng) for name in sorted(template.inputs)
+            if template.inputs[name].has_domain}
+
+
+def _render_steps(steps: list, model: type | TypeAdapter, values: Mapping[str, Scalar], where: Where) -> list:
+    out = []
+    for i, step in enumerate(steps):
+        data = render_data(step.model_dump(mode="json"), values,
+                           Where(where.path, where.task, f"{where.field}[{i}]"))
+        data.pop("provides", None)
+        out.append(model.validate_python(data) if isinstance(model, TypeAdapter) else model.model_validate(data))
+    return out
+
+
+def materialise(template: TaskTemplate, values: Mapping[str, Scalar], *, fed: Mapping[str, BoundSlot] | None = None,
+                source: object = None) -> Subtask:
+    """Bind the inputs (sampled `values`, overridden by `fed` slots from upstream subtasks) and render the rest.
+
+    Setup steps that `provide` a fed input are dropped: the upstream subtask produces that input.
+    """
+    fed = dict(fed or {})
+    where = Where(source, template.id)
+    inputs: dict[str, BoundSlot] = {}
+    for name in sorted(template.inputs):
+        if name in fed:
+            inputs[name] = BoundSlot(type=fed[name].type, value=fed[name].value)
+        elif name in values:
+            inputs[name] = BoundSlot(type=template.inputs[name].type, value=values[name])
+        else:
+            raise where.at(f"inputs.{name}").error(f"input slot {name!r} has no value and no upstream subtask",
+                                                   "give it a sampling domain (choices, range or pattern)")
+    input_values = {name: slot.value for name, slot in inputs.items()}
+    outputs: dict[str, BoundSlot] = {}
+    for name in sorted(template.outputs):
+        spec = template.outputs[name]
+        value = render_text(spec.value, input_values, where.at(f"outputs.{name}.value"))
+        bound_type = inputs[spec.same_type_as].type if spec.same_type_as else spec.type
+        outputs[name] = BoundSlot(type=bound_type, value=value, content_checked=None if spec.content_checked else False)
+    every = {**input_values, **{name: slot.value for name, slot in outputs.items()}}
+    kept = [step for step in template.config if step.provides is None or step.provides not in fed]
+    return Subtask(
+        template=template.id,
+        platform=template.platform,
+        app=template.app,
+        instruction=render_text(template.instruction, every, where.at("instruction")),
+        input=inputs,
+        output=outputs,
+        config=_render_steps(kept, _STEP, every, where.at("config")),
+        evaluate=_render_steps(template.evaluate, EvaluatorSpec, every, where.at("evaluate")),
+        solution=_render_steps(template.solution, SolutionStep, every, where.at("solution")),
+        consumes=dict(sorted(template.consumes.items())),
+        settings=sorted(template.settings),
+        source_platform=template.source_platform,
+        max_steps=template.max_steps,
+    )
+
+
+def instance_id(template_id: str, seed: int) -> str:
+    """The readable id of an atomic instance, e.g. `ubuntu-calc-sort_column[seed0]`."""
+    return f"{template_id}[seed{seed}]"
+
+
+def atomic_task(template: TaskTemplate, seed: int, *, source: object = None) -> Task:
+    """The atomic task (a graph of one subtask) of `template` with input values drawn for `seed`."""
+    rng = random.Random(f"{template.id}#seed{seed}")
+    sub = materialise(template, sample_inputs(template, rng), source=source)
+    return Task(id=instance_id(template.id, seed), category="atomic", devices=[template.platform],
+                instruction=sub.instruction, edges=[], formatted_subtasks=[sub])
+
+
+def atomic_instances(library: "Library", seeds_per_template: int = 2) -> list[Task]:
+    """`seeds_per_template` seeded instances of every template of `library`, sorted by id then seed."""
+    if seeds_per_template < 0:
+        raise ConfigError("the number of instances per template cannot be negative", field="seeds_per_template",
+                          fix="pass 1 or more")
+    return [atomic_task(t, n, source=library.sources.get(t.id)) for t in library.templates
+            for n in range(seeds_per_template)]
+
