@@ -9,7 +9,7 @@ WORKERS ?= 2
 PYTEST_ARGS ?=
 STAMP := $(VENV)/.installed
 
-.PHONY: setup engine images test bench clean-devices
+.PHONY: setup engine images host-packages test bench clean-devices
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -28,8 +28,15 @@ engine: setup
 images: engine
 	$(JARVIS) images build
 
+## host-packages: Debian packages the tests use on the host (chromium for the dashboard's browser tests)
+host-packages:
+	@command -v chromium >/dev/null || { \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    apt-get update -q >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium >/dev/null; \
+	  else echo "missing chromium: run  sudo apt-get install -y chromium"; exit 1; fi; }
+
 ## test: the project's own tests, container tests included
-test: images
+test: images host-packages
 	$(BIN)/pytest -p no:cacheprovider tests -n $(WORKERS) $(PYTEST_ARGS)
 
 ## bench: run the benchmark with the default agent on the default devices and write a report
