@@ -34,6 +34,7 @@ class JarvisSession:
     agent: Any = None
     context: RunContext | None = None
     results: dict[str, TaskResult] = field(default_factory=dict)  # controller: task id → compact result
+    _params: dict[str, list[Any]] = field(default_factory=dict)
     started: str = field(default_factory=now_iso)
 
     def ensure_agent(self):
@@ -48,6 +49,16 @@ class JarvisSession:
             except JarvisError as exc:
                 raise pytest.UsageError(f"--agent {self.options.agent}: {exc}") from None
         return self.agent
+
+    def params(self, kind: str) -> list[Any]:
+        """The pytest params of the atomic or composed tasks (loaded once; a bad task file is a usage error)."""
+        if kind not in self._params:
+            load = cases.atomic_params if kind == "atomic" else cases.composed_params
+            try:
+                self._params[kind] = load(self.options)
+            except ConfigError as exc:
+                raise pytest.UsageError(f"bad task data: {exc}") from None
+        return self._params[kind]
 
     def ensure_context(self) -> RunContext:
         if self.context is None:
@@ -104,6 +115,7 @@ def configure(config: pytest.Config) -> None:
         config.pluginmanager.register(_XdistHooks(run_dir), "jarvis-xdist")
     if session.is_controller and options.agent:
         agent = session.ensure_agent()  # an unknown agent or a bad option is one clear error, now
+        session.params("atomic"), session.params("composed")  # so is a malformed task file
         preflight = getattr(agent, "preflight", None)
         if preflight is not None:
             try:
@@ -118,17 +130,13 @@ def configure(config: pytest.Config) -> None:
 
 
 def parametrize(metafunc: pytest.Metafunc) -> None:
-    session = get(metafunc.config)
     kind = getattr(metafunc.module, "JARVIS_TASKS", "atomic")
-    try:
-        params = cases.atomic_params(session.options) if kind == "atomic" else cases.composed_params(session.options)
-    except ConfigError as exc:
-        raise pytest.UsageError(str(exc)) from None
-    metafunc.parametrize("jarvis_task", params)
+    metafunc.parametrize("jarvis_task", get(metafunc.config).params(kind))
 
 
 def check_collected(config: pytest.Config, items: list[pytest.Item]) -> None:
-    jarvis_items = [i for i in items if "jarvis_task" in getattr(i, "fixturenames", ())]
+    jarvis_items = [i for i in items if isinstance(getattr(getattr(i, "callspec", None), "params", {})
+                                                   .get("jarvis_task"), dict)]
     if not jarvis_items:
         return
     session = get(config)
