@@ -342,6 +342,11 @@ class PlannerGrounderAgent:
         self.task: TaskContext | None = None
         self.template = PROMPT_FILE.read_text(encoding="utf-8")
 
+    def preflight(self) -> None:
+        """Called once at start-up: both endpoints must answer, or the run stops with one clear error."""
+        self.planner.check_reachable()
+        self.grounder.client.check_reachable()
+
     def reset(self, task: TaskContext) -> None:
         self.task = task
 

@@ -131,6 +131,17 @@ class ChatClient:
         """What identifies this client in results: endpoint and model, never the key."""
         return {"base_url": self.base_url, "model": self.model}
 
+    def check_reachable(self, timeout: float = 5.0) -> None:
+        """Raise ConfigError when nothing answers at the endpoint (any HTTP answer, even 401 or 404, is reachable)."""
+        from jarvis_pytest.errors import ConfigError
+
+        try:
+            self._http.get(f"{self.base_url}/models", timeout=timeout)
+        except httpx.HTTPError as exc:
+            raise ConfigError(f"endpoint {self.base_url} is unreachable ({exc.__class__.__name__})",
+                              field="base_url", fix="start the server or correct --planner-base-url / "
+                              "--grounder-base-url (or JARVIS_*_BASE_URL)") from None
+
     def close(self) -> None:
         self._http.close()
 
