@@ -1,0 +1,117 @@
+"""The host-side client of a desktop device's control server (httpx, one keep-alive connection pool)."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import httpx
+from jarvis_pytest.devices.actions import Action
+from jarvis_pytest.devices.base import ActionOutcome, CommandResult, Observation
+from jarvis_pytest.devices.protocol import ActionResult, Health, LaunchRequest, RunRequest, RunResponse, ScreenSize
+from jarvis_pytest.errors import InfrastructureError
+
+
+def png_size(png: bytes) -> tuple[int, int]:
+    """Width and height from a PNG header (no decoding)."""
+    return int.from_bytes(png[16:20], "big"), int.from_bytes(png[20:24], "big")
+
+
+class DesktopDevice:
+    """A desktop device (Ubuntu now; Windows later with the same server) reached at `base_url` on 127.0.0.1."""
+
+    def __init__(self, base_url: str, platform: str = "ubuntu", timeout: float = 30.0):
+        self.platform = platform
+        self.base_url = base_url.rstrip("/")
+        self.http = httpx.Client(base_url=self.base_url, timeout=timeout)
+
+    def __repr__(self) -> str:
+        return f"DesktopDevice({self.base_url!r}, platform={self.platform!r})"
+
+    def _request(self, method: str, path: str, *, timeout: float | None = None, **kw) -> httpx.Response:
+        try:
+            return self.http.request(method, path, timeout=timeout or self.http.timeout, **kw)
+        except httpx.HTTPError as exc:
+            raise InfrastructureError(f"{self.platform} device at {self.base_url} did not answer {method} {path}: "
+                                      f"{exc.__class__.__name__}: {exc}") from exc
+
+    def _ok(self, resp: httpx.Response) -> httpx.Response:
+        if resp.status_code >= 400:
+            try:
+                msg = resp.json().get("error", resp.text)
+            except ValueError:
+                msg = resp.text
+            raise InfrastructureError(f"{self.platform} device: {resp.request.method} {resp.request.url.path} "
+                                      f"failed ({resp.status_code}): {msg}")
+        return resp
+
+    def health(self) -> Health:
+        return Health.model_validate(self._ok(self._request("GET", "/health", timeout=5)).json())
+
+    def screenshot(self) -> bytes:
+        return self._ok(self._request("GET", "/screenshot")).content
+
+    def a11y_tree(self, max_nodes: int = 2000, timeout: float = 5.0) -> dict:
+        resp = self._request("GET", "/a11y", params={"max_nodes": max_nodes, "timeout": timeout}, timeout=timeout + 10)
+        return self._ok(resp).json()
+
+    def observe(self, *, a11y: bool = False) -> Observation:
+        png = self.screenshot()
+        w, h = png_size(png)
+        tree = None
+        if a11y:
+            tree = json.dumps(self.a11y_tree())
+        return Observation(platform=self.platform, screenshot_png=png, width=w, height=h, a11y_tree=tree)
+
+    def act(self, action: Action) -> ActionOutcome:
+        t0 = time.perf_counter()
+        resp = self._request("POST", "/action", content=action.model_dump_json(),
+                             headers={"Content-Type": "application/json"},
+                             timeout=max(30.0, float(getattr(action, "seconds", 0)) + 30))
+        if 400 <= resp.status_code < 500:
+            return ActionOutcome(ok=False, error=resp.json().get("error", resp.text),
+                                 elapsed_ms=(time.perf_counter() - t0) * 1000)
+        result = ActionResult.model_validate(self._ok(resp).json())
+        return ActionOutcome(ok=result.ok, error=result.error, elapsed_ms=result.elapsed_ms)
+
+    def screen_size(self) -> tuple[int, int]:
+        s = ScreenSize.model_validate(self._ok(self._request("GET", "/screen_size")).json())
+        return s.width, s.height
+
+    def upload(self, path: str, data: bytes) -> None:
+        self._ok(self._request("PUT", "/files", params={"path": path}, content=data))
+
+    def download(self, path: str) -> bytes:
+        return self._ok(self._request("GET", "/files", params={"path": path})).content
+
+    def run(self, command: str, *, timeout: float = 60.0, user: str | None = None) -> CommandResult:
+        req = RunRequest(command=command, user=user, timeout=timeout)
+        resp = self._request("POST", "/run", content=req.model_dump_json(), timeout=timeout + 10,
+                             headers={"Content-Type": "application/json"})
+        r = RunResponse.model_validate(self._ok(resp).json())
+        return CommandResult(returncode=r.returncode, stdout=r.stdout, stderr=r.stderr)
+
+    def launch(self, app: str, *args: str) -> None:
+        req = LaunchRequest(app=app, args=list(args))
+        self._ok(self._request("POST", "/launch", content=req.model_dump_json(),
+                               headers={"Content-Type": "application/json"}))
+
+    def close(self) -> None:
+        self.http.close()
+
+
+def wait_ready(base_url: str, timeout: float) -> None:
+    """Poll /health until the desktop is up; raise InfrastructureError after `timeout` seconds."""
+    deadline = time.monotonic() + timeout
+    last = "no answer"
+    with httpx.Client(base_url=base_url, timeout=2.0) as http:
+        while time.monotonic() < deadline:
+            try:
+                data = http.get("/health").json()
+                if data.get("desktop"):
+                    return
+                last = f"desktop not up yet: {data.get('details')}"
+            except (httpx.HTTPError, ValueError) as exc:
+                last = f"{exc.__class__.__name__}"
+            time.sleep(0.02)
+    raise InfrastructureError(f"device at {base_url} not ready after {timeout:.0f} s ({last})")

@@ -1,0 +1,47 @@
+"""Request and response models of the control server, shared by the server (inside a device) and the client."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict, Field
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class Health(_Model):
+    ok: bool = True
+    desktop: bool  # the window manager and the desktop are running
+    details: dict[str, bool] = Field(default_factory=dict)
+
+
+class ScreenSize(_Model):
+    width: int
+    height: int
+
+
+class ActionResult(_Model):
+    ok: bool
+    error: str | None = None
+    elapsed_ms: float = 0.0
+
+
+class RunRequest(_Model):
+    command: str = Field(min_length=1)
+    user: str | None = Field(default=None, description="`root` runs through sudo; default: the desktop user")
+    timeout: float = Field(default=60.0, gt=0, le=3600)
+
+
+class RunResponse(_Model):
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+class LaunchRequest(_Model):
+    app: str = Field(min_length=1)
+    args: list[str] = Field(default_factory=list)
+
+
+class ErrorResponse(_Model):
+    error: str
