@@ -26,22 +26,15 @@ def _param(task: dict[str, Any]) -> Any:
     return pytest.param(task, id=task["id"], marks=marks)
 
 
-def atomic_params(options: JarvisOptions) -> list[Any]:
-    """One param per seeded instance of every template under the library folder (sorted by id)."""
+def params(kind: str, options: JarvisOptions, config: pytest.Config) -> list[Any]:
+    """One param per atomic instance of every template under the library folder, or per composed task of the
+    dataset files; the application markers they use are declared first, so `-m app_...` works quietly."""
     from jarvis_pytest.tasks import harness_api
 
-    return [_param(t) for t in harness_api.atomic_tasks(options.library, options.instances)]
-
-
-def composed_params(options: JarvisOptions) -> list[Any]:
-    """One param per composed task of the dataset files (sorted by id)."""
-    from jarvis_pytest.tasks import harness_api
-
-    return [_param(t) for t in harness_api.composed_tasks(options.datasets)]
-
-
-def register_markers(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Declare the application markers actually used, so `-m app_...` works without warnings."""
-    seen = sorted({m.name for i in items for m in i.iter_markers() if m.name.startswith("app_")})
-    for name in seen:
-        config.addinivalue_line("markers", f"{name}: tasks of this application")
+    if kind == "atomic":
+        tasks = harness_api.atomic_tasks(options.library, options.instances)
+    else:
+        tasks = harness_api.composed_tasks(options.datasets)
+    for app in sorted({s["app"] for t in tasks for s in t["formatted_subtasks"] if s.get("app")}):
+        config.addinivalue_line("markers", f"{app_marker(app)}: tasks of the application {app}")
+    return [_param(t) for t in tasks]

@@ -50,12 +50,11 @@ class JarvisSession:
                 raise pytest.UsageError(f"--agent {self.options.agent}: {exc}") from None
         return self.agent
 
-    def params(self, kind: str) -> list[Any]:
+    def params(self, kind: str, config: pytest.Config) -> list[Any]:
         """The pytest params of the atomic or composed tasks (loaded once; a bad task file is a usage error)."""
         if kind not in self._params:
-            load = cases.atomic_params if kind == "atomic" else cases.composed_params
             try:
-                self._params[kind] = load(self.options)
+                self._params[kind] = cases.params(kind, self.options, config)
             except ConfigError as exc:
                 raise pytest.UsageError(f"bad task data: {exc}") from None
         return self._params[kind]
@@ -115,7 +114,7 @@ def configure(config: pytest.Config) -> None:
         config.pluginmanager.register(_XdistHooks(run_dir), "jarvis-xdist")
     if session.is_controller and options.agent:
         agent = session.ensure_agent()  # an unknown agent or a bad option is one clear error, now
-        session.params("atomic"), session.params("composed")  # so is a malformed task file
+        session.params("atomic", config), session.params("composed", config)  # so is a malformed task file
         preflight = getattr(agent, "preflight", None)
         if preflight is not None:
             try:
@@ -131,21 +130,25 @@ def configure(config: pytest.Config) -> None:
 
 def parametrize(metafunc: pytest.Metafunc) -> None:
     kind = getattr(metafunc.module, "JARVIS_TASKS", "atomic")
-    metafunc.parametrize("jarvis_task", get(metafunc.config).params(kind))
+    metafunc.parametrize("jarvis_task", get(metafunc.config).params(kind, metafunc.config))
+
+
+def _task_of(item: pytest.Item) -> dict[str, Any] | None:
+    """The task of a task case (None for other items, and for an empty parameter set)."""
+    task = getattr(getattr(item, "callspec", None), "params", {}).get("jarvis_task")
+    return task if isinstance(task, dict) else None
 
 
 def check_collected(config: pytest.Config, items: list[pytest.Item]) -> None:
-    jarvis_items = [i for i in items if isinstance(getattr(getattr(i, "callspec", None), "params", {})
-                                                   .get("jarvis_task"), dict)]
+    jarvis_items = [i for i in items if _task_of(i) is not None]
     if not jarvis_items:
         return
     session = get(config)
     if not session.options.agent:
         raise pytest.UsageError("choose an agent with --agent NAME (e.g. --agent oracle to check the tasks, "
                                 "--agent holo2 with --planner-base-url/--grounder-base-url for a model)")
-    cases.register_markers(config, jarvis_items)
     # Longest tasks first (more subtasks), ties by id: keeps xdist workers busy to the end, and is deterministic.
-    order = {id(i): (-len(i.callspec.params["jarvis_task"]["formatted_subtasks"]), i.nodeid) for i in jarvis_items}
+    order = {id(i): (-len(_task_of(i)["formatted_subtasks"]), i.nodeid) for i in jarvis_items}
     positions = [n for n, i in enumerate(items) if id(i) in order]
     for pos, item in zip(positions, sorted(jarvis_items, key=lambda i: order[id(i)])):
         items[pos] = item
@@ -155,7 +158,7 @@ def prewarm_next(item: pytest.Item, nextitem: pytest.Item | None) -> None:
     session = get(item.config)
     if not session.options.prewarm or session.context is None or nextitem is None:
         return
-    task = getattr(getattr(nextitem, "callspec", None), "params", {}).get("jarvis_task")
+    task = _task_of(nextitem)
     if task is not None:
         session.context.environments.prewarm(task_platforms(task))
 

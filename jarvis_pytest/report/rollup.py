@@ -26,14 +26,14 @@ class Cell(BaseModel):
     """One table cell: the rate (None when n = 0), its raw counts and its 95 % bootstrap interval."""
 
     rate: float | None
-    k: float
+    k: int | float  # a count; fractional only for SSR (sum of per-task ratios)
     n: int
     ci: tuple[float, float] | None = None
 
     def text(self) -> str:
         if self.rate is None:
             return "–"
-        k = f"{self.k:g}" if isinstance(self.k, float) else str(self.k)
+        k = f"{self.k:g}"
         return f"{100 * self.rate:.1f} ({k}/{self.n})"
 
     def ci_text(self) -> str:
