@@ -25,7 +25,38 @@ def _images_list(args) -> int:
     return 0
 
 
+def _cleanup(args) -> int:
+    from jarvis_pytest.infra.cleanup import cleanup
+
+    if not args.run and not args.all:
+        print("jarvis cleanup: give --run RUN_ID or --all", flush=True)
+        return 2
+    counts = cleanup(args.run, everything=args.all)
+    print(", ".join(f"{v} {k}" for k, v in counts.items()) + " removed")
+    return 0
+
+
+def _bench_devices(args) -> int:
+    from jarvis_pytest.infra import bench
+
+    return bench.main(args)
+
+
 def register(sub) -> None:
+    c = sub.add_parser("cleanup", help="remove containers, networks and volumes a crashed run left behind")
+    c.add_argument("--run", help="the run id (the name of its folder under reports/)")
+    c.add_argument("--all", action="store_true", help="everything any jarvis run left")
+    c.set_defaults(func=_cleanup)
+
+    p = sub.add_parser("bench", help="measure the harness")
+    bsub = p.add_subparsers(dest="bench_command", required=True)
+    d = bsub.add_parser("devices", help="cold start, reset, screenshot, action and a11y latency; idle memory")
+    d.add_argument("--platform", default="ubuntu")
+    d.add_argument("--repeat", type=int, default=5, help="cold starts and pool resets to time (default 5)")
+    d.add_argument("--samples", type=int, default=30, help="screenshots and actions to time (default 30)")
+    d.add_argument("--json", action="store_true", help="print JSON")
+    d.set_defaults(func=_bench_devices)
+
     p = sub.add_parser("engine", help="the Docker engine")
     esub = p.add_subparsers(dest="engine_command", required=True)
     e = esub.add_parser("ensure", help="install (Debian, root) and start the Docker engine if needed")

@@ -31,6 +31,7 @@ class Devices:
         self._lock = threading.Lock()
         self._screen = None
         self._keyboard = None
+        self.ready = False
 
     @property
     def screen(self):
@@ -168,13 +169,18 @@ class Handler(BaseHTTPRequestHandler):
 
     # -- endpoints --------------------------------------------------------------------------------------------
     def health(self) -> None:
-        procs = system.running(system.DESKTOP_PROCESSES)
+        """Ready = the display answers, the desktop's processes run and the desktop is drawn (then it stays so:
+        an agent's own full-screen window must not make a device "unready")."""
+        if DEVICES.ready:
+            self._json(200, Health(ok=True, desktop=True, details={"ready": True}))
+            return
+        details = system.running(system.DESKTOP_PROCESSES)
         try:
-            DEVICES.screen.size()
-            procs["display"] = True
+            details["painted"] = all(details.values()) and DEVICES.screen.painted()
         except Exception:
-            procs["display"] = False
-        self._json(200, Health(ok=True, desktop=all(procs.values()), details=procs))
+            details["painted"] = False
+        DEVICES.ready = all(details.values())
+        self._json(200, Health(ok=True, desktop=DEVICES.ready, details=details))
 
     def screen_size(self) -> None:
         w, h = DEVICES.screen.size()

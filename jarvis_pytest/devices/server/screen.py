@@ -10,7 +10,7 @@ import struct
 import threading
 import zlib
 
-from PIL import Image, ImageDraw, ImageGrab
+from PIL import Image, ImageDraw, ImageGrab, ImageStat
 from Xlib import display
 
 _ARROW = [(0, 0), (0, 17), (4, 13), (7, 20), (10, 19), (7, 12), (12, 12)]
@@ -53,6 +53,11 @@ class Screen:
         ImageDraw.Draw(img).polygon([(px + dx, py + dy) for dx, dy in _ARROW], fill=(255, 255, 255),
                                     outline=(0, 0, 0))
         return img
+
+    def painted(self, min_stddev: float = 8.0) -> bool:
+        """Whether the screen shows something (a desktop that is up but not yet drawn is one flat colour)."""
+        small = ImageGrab.grab(xdisplay=self.name or "").reduce(8).convert("L")
+        return ImageStat.Stat(small).stddev[0] >= min_stddev
 
     def png(self) -> bytes:
         return encode_png(self.grab())

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from jarvis_pytest.devices.protocol import RunResponse
 
-DESKTOP_PROCESSES = ("xfwm4", "xfdesktop")
+DESKTOP_PROCESSES = ("xfwm4", "xfdesktop", "xfce4-panel")
 
 
 def running(names: tuple[str, ...]) -> dict[str, bool]:
