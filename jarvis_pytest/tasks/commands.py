@@ -1,4 +1,4 @@
-"""`jarvis schema`, `jarvis types`, `jarvis templates` and `jarvis compose`."""
+"""`jarvis schema`, `jarvis types`, `jarvis templates` and `jarvis compose` (with the optional LLM steps)."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from typing import Any
 
 from pydantic import TypeAdapter
 
+from jarvis_pytest.tasks import llm_steps
 from jarvis_pytest.tasks.compose import compose
 from jarvis_pytest.tasks.dataset import write_dataset
 from jarvis_pytest.tasks.library import load_library
@@ -68,9 +69,20 @@ def _templates(args: argparse.Namespace) -> int:
 
 def _compose(args: argparse.Namespace) -> int:
     lib = load_library(args.library, types_path=args.types)
-    tasks = compose(lib, seed=args.seed, count=args.count, max_subtasks=args.max_subtasks, balanced=args.balanced)
     meta = {"generator": "jarvis compose", "seed": args.seed, "count": args.count, "balanced": args.balanced,
             "max_subtasks": args.max_subtasks, "library_digest": lib.digest()}
+    chat = None
+    if args.rewrite or args.judge:
+        config = llm_steps.endpoint(args.composer_base_url, args.composer_model, args.composer_api_key)
+        chat = llm_steps.cached_chat(config, args.llm_cache)
+        meta["llm"] = {"model": config.model, "rewrite": args.rewrite, "judge": args.judge}
+    try:
+        finalize = llm_steps.pipeline(chat, rewrite=args.rewrite, judge=args.judge) if chat else None
+        tasks = compose(lib, seed=args.seed, count=args.count, max_subtasks=args.max_subtasks,
+                        balanced=args.balanced, finalize=finalize, max_attempts=args.max_attempts)
+    finally:
+        if chat is not None:
+            chat.close()
     path = write_dataset(args.out, tasks, meta)
     counts = {c: sum(t.category == c for t in tasks) for c in ("sw", "mi", "md")}
     print(f"wrote {len(tasks)} tasks to {path} (" + ", ".join(f"{k.upper()} {v}" for k, v in counts.items()) + ")")
@@ -110,4 +122,17 @@ def register(sub: Any) -> None:
                    help="K: most subtasks per task, transfer subtasks included (default 4)")
     p.add_argument("--balanced", action="store_true", help="equal thirds of SW, MI and MD")
     p.add_argument("--out", type=Path, required=True, help="dataset file to write")
+    p.add_argument("--max-attempts", type=int, default=200,
+                   help="draws per task before giving up (the judge rejects many; default 200)")
+    g = p.add_argument_group("optional LLM steps (any OpenAI-compatible endpoint)")
+    g.add_argument("--rewrite", action="store_true",
+                   help="rewrite each merged instruction with the LLM (kept only if every slot value survives verbatim)")
+    g.add_argument("--judge", action="store_true", help="keep only tasks the LLM judge rates 5/5/5 "
+                   "(realism, coherence, evaluability)")
+    g.add_argument("--composer-base-url", default=None, help="API root, e.g. http://127.0.0.1:8000/v1 "
+                   "(env JARVIS_COMPOSER_BASE_URL)")
+    g.add_argument("--composer-model", default=None, help="model name (env JARVIS_COMPOSER_MODEL)")
+    g.add_argument("--composer-api-key", default=None, help="API key (env JARVIS_COMPOSER_API_KEY); never written")
+    g.add_argument("--llm-cache", type=Path, default=llm_steps.DEFAULT_CACHE,
+                   help=f"folder of cached LLM answers (default {llm_steps.DEFAULT_CACHE})")
     p.set_defaults(func=_compose)
