@@ -70,6 +70,7 @@ def _templates(args: argparse.Namespace) -> int:
 def _compose(args: argparse.Namespace) -> int:
     lib = load_library(args.library, types_path=args.types)
     meta = {"generator": "jarvis compose", "seed": args.seed, "count": args.count, "balanced": args.balanced,
+            "category": args.category,
             "max_subtasks": args.max_subtasks, "library_digest": lib.digest()}
     chat = None
     if args.rewrite or args.judge:
@@ -79,7 +80,7 @@ def _compose(args: argparse.Namespace) -> int:
     try:
         finalize = llm_steps.pipeline(chat, rewrite=args.rewrite, judge=args.judge) if chat else None
         tasks = compose(lib, seed=args.seed, count=args.count, max_subtasks=args.max_subtasks,
-                        balanced=args.balanced, finalize=finalize, max_attempts=args.max_attempts)
+                        balanced=args.balanced, category=args.category, finalize=finalize, max_attempts=args.max_attempts)
     finally:
         if chat is not None:
             chat.close()
@@ -121,6 +122,8 @@ def register(sub: Any) -> None:
     p.add_argument("--max-subtasks", type=int, default=4,
                    help="K: most subtasks per task, transfer subtasks included (default 4)")
     p.add_argument("--balanced", action="store_true", help="equal thirds of SW, MI and MD")
+    p.add_argument("--category", choices=("sw", "mi", "md"), help="compose only tasks of this category "
+                   "(e.g. sw for a library of one platform)")
     p.add_argument("--out", type=Path, required=True, help="dataset file to write")
     p.add_argument("--max-attempts", type=int, default=200,
                    help="draws per task before giving up (the judge rejects many; default 200)")

@@ -288,8 +288,11 @@ def compose_task(library: Library, category: str, rng: random.Random, max_subtas
                 edges=built.edges, formatted_subtasks=built.subtasks)
 
 
-def category_plan(seed: int, count: int, balanced: bool) -> list[str]:
-    """The category of every task of a dataset: equal thirds when balanced, else MI or dependent at random."""
+def category_plan(seed: int, count: int, balanced: bool, category: str | None = None) -> list[str]:
+    """The category of every task of a dataset: all `category` when given, equal thirds when balanced, else MI
+    or dependent at random."""
+    if category is not None:
+        return [category] * count
     if balanced:
         base, extra = divmod(count, 3)
         return [c for i, c in enumerate(CATEGORIES) for _ in range(base + (1 if i < extra else 0))]
@@ -303,7 +306,7 @@ def _signature(task: Task) -> str:
 
 
 def compose(library: Library, *, seed: int, count: int, max_subtasks: int, balanced: bool = False,
-            finalize: Callable[[Task], Task | None] | None = None, max_attempts: int = 200) -> list[Task]:
+            category: str | None = None, finalize: Callable[[Task], Task | None] | None = None, max_attempts: int = 200) -> list[Task]:
     """A dataset of `count` distinct composed tasks with ids `<category>-<index:04d>`.
 
     `finalize` (e.g. the LLM rewrite and judge) may change a task or reject it (None); a rejected draw counts as
@@ -313,7 +316,7 @@ def compose(library: Library, *, seed: int, count: int, max_subtasks: int, balan
         raise ConfigError("the task count cannot be negative", field="--count", fix="pass --count 1 or more")
     if max_subtasks < 2:
         raise ConfigError("a composed task needs at least 2 subtasks", field="--max-subtasks", fix="pass 2 or more")
-    plan = category_plan(seed, count, balanced)
+    plan = category_plan(seed, count, balanced, category)
     if "md" in plan and max_subtasks < 3:
         raise ConfigError("an MD task needs at least 3 subtasks (two tasks and a transfer)", field="--max-subtasks",
                           fix="pass --max-subtasks 3 or more")
