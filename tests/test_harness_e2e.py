@@ -1,0 +1,110 @@
+"""The benchmark end to end through pytest itself, on real containers: the oracle passes and noop fails real
+Ubuntu tasks under -n 2, the summary equals the per-task results, xdist or not, and a killed run resumes."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from jarvis_pytest.report.rollup import load_results, rollup
+
+pytestmark = pytest.mark.containers
+REPO = Path(__file__).resolve().parents[1]
+SELECT = ["-k", "seed0 or sw-0000 or sw-0001", "--instances", "1"]  # 4 atomic + 2 composed tasks
+
+
+def bench(run_dir: Path, *args: str, timeout: float = 600) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", str(REPO / "tasks"), "--results-dir",
+           str(run_dir), *SELECT, *args]
+    return subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=timeout)
+
+
+def summary_of(run_dir: Path) -> dict:
+    return json.loads((run_dir / "summary.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def oracle_run(device_images, tmp_path_factory):
+    run_dir = tmp_path_factory.mktemp("oracle")
+    proc = bench(run_dir, "--agent", "oracle", "-n", "2")
+    return run_dir, proc
+
+
+def test_oracle_passes_every_task(oracle_run):
+    run_dir, proc = oracle_run
+    assert proc.returncode == 0, proc.stdout[-4000:]
+    results, problems = load_results(run_dir)
+    assert not problems and len(results) == 6 and all(r.status == "passed" for r in results)
+    assert {r.category for r in results} == {"atomic", "sw"}
+    assert "jarvis: task success rates" in proc.stdout and "100.0 (4/4)" in proc.stdout
+
+
+def test_summary_equals_the_per_task_results(oracle_run):
+    run_dir, _ = oracle_run
+    results, _ = load_results(run_dir)
+    assert summary_of(run_dir) == rollup(results, agent="oracle").model_dump(mode="json")
+
+
+def test_summary_is_the_same_without_xdist(oracle_run, tmp_path):
+    run_dir, _ = oracle_run
+    before = summary_of(run_dir)
+    proc = bench(run_dir, "--agent", "oracle", "--resume", str(run_dir), "-p", "no:xdist")
+    assert proc.returncode == 0, proc.stdout[-3000:]
+    assert summary_of(run_dir) == before
+
+
+def test_results_and_report_files(oracle_run):
+    run_dir, _ = oracle_run
+    task = run_dir / "tasks" / "sw-0000"
+    lines = [json.loads(l) for l in (task / "traj.jsonl").read_text().splitlines()]
+    assert lines and all((task / f).is_file() for l in lines for f in l["screenshots"].values())
+    result = json.loads((task / "result.json").read_text())
+    assert result["image_ids"]["ubuntu"].startswith("sha256:") and result["agent"] == {"name": "oracle"}
+    assert [s["passed"] for s in result["subtasks"]] == [True, True]
+    html = (run_dir / "report.html").read_text()
+    assert "Task success rates" in html and "sw-0000" in html and "first screenshot" in html
+
+
+def test_noop_fails_every_task_with_reasons(device_images, tmp_path):
+    proc = bench(tmp_path, "--agent", "noop", "-n", "2")
+    assert proc.returncode == 1
+    results, _ = load_results(tmp_path)
+    assert len(results) == 6 and all(r.status == "failed" for r in results)
+    assert "file_not_contains: expected" in proc.stdout and "found no file" in proc.stdout
+    s = summary_of(tmp_path)
+    assert s["atomic"]["ubuntu"]["k"] == 0 and s["composed"]["sw"]["ssr"]["rate"] == 0.0
+
+
+def test_a_killed_run_keeps_its_results_and_resumes(device_images, tmp_path):
+    cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:xdist", str(REPO / "tasks"),
+           "--results-dir", str(tmp_path), "--agent", "oracle", *SELECT]
+    proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
+    try:
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline:
+            done = [r for r in load_results(tmp_path)[0] if r.status == "passed"]
+            if len(done) >= 2:
+                break
+            time.sleep(0.2)
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(30)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    finished = {r.task_id: r.started for r in load_results(tmp_path)[0] if r.status == "passed"}
+    assert 2 <= len(finished) < 6
+    subprocess.run([sys.executable, "-m", "jarvis_pytest.cli", "cleanup", "--run", tmp_path.name], check=True,
+                   capture_output=True)
+    resumed = bench(tmp_path, "--agent", "oracle", "--resume", str(tmp_path), "-n", "2")
+    assert resumed.returncode == 0, resumed.stdout[-3000:]
+    results = {r.task_id: r for r in load_results(tmp_path)[0]}
+    assert len(results) == 6 and all(r.status == "passed" for r in results.values())
+    assert all(results[t].started == started for t, started in finished.items())  # not run again
