@@ -6,6 +6,7 @@ BIN := $(VENV)/bin
 JARVIS := $(BIN)/jarvis
 AGENT ?= oracle
 WORKERS ?= 2
+MARKERS ?= ubuntu
 PYTEST_ARGS ?=
 STAMP := $(VENV)/.installed
 
@@ -39,9 +40,9 @@ host-packages:
 test: images host-packages
 	$(BIN)/pytest -p no:cacheprovider tests -n $(WORKERS) $(PYTEST_ARGS)
 
-## bench: run the benchmark with the default agent on the default devices and write a report
+## bench: run the benchmark (the Ubuntu tasks; AGENT=oracle by default) and write the tables and a report
 bench: images
-	$(BIN)/pytest tasks -n $(WORKERS) --agent $(AGENT) $(PYTEST_ARGS)
+	$(BIN)/pytest tasks -n $(WORKERS) --agent $(AGENT) -m "$(MARKERS)" $(PYTEST_ARGS)
 
 ## clean-devices: remove containers and networks a crashed run left behind
 clean-devices: setup

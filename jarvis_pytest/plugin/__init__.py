@@ -27,6 +27,10 @@ def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config
     _session.check_collected(config, items)
 
 
+def pytest_collection_finish(session: pytest.Session) -> None:
+    _session.write_plan(session)
+
+
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None):
     _session.prewarm_next(item, nextitem)

@@ -26,9 +26,11 @@ class HtmlHooks:
     def __init__(self, config: pytest.Config):
         self.config = config
 
-    def _report_dir(self) -> Path | None:
+    def _report_dir(self) -> Path:
+        """Where report.html is written: --html when given, else the run directory (the controller's default,
+        which xdist workers do not see in their options)."""
         path = getattr(self.config.option, "htmlpath", None)
-        return Path(path).resolve().parent if path else None
+        return Path(path).resolve().parent if path else _session.get(self.config).run_dir
 
     def pytest_html_results_table_header(self, cells: list[str]) -> None:
         cells[2:2] = [f"<th>{c}</th>" for c in COLUMNS]
@@ -47,7 +49,7 @@ class HtmlHooks:
         report = outcome.get_result()
         p = _props(report)
         base = self._report_dir()
-        if p is None or base is None or report.when not in ("call", "setup") or (report.when == "setup" and report.passed):
+        if p is None or report.when not in ("call", "setup") or (report.when == "setup" and report.passed):
             return
         import pytest_html
 

@@ -154,6 +154,16 @@ def check_collected(config: pytest.Config, items: list[pytest.Item]) -> None:
         items[pos] = item
 
 
+def write_plan(session_: pytest.Session) -> None:
+    """`plan.json`: the ids of the tasks this session will run (the dashboard shows those not started as
+    pending). Every xdist worker collects the same items, so whichever writes it writes the same file."""
+    ids = sorted(t["id"] for t in map(_task_of, session_.items) if t is not None)
+    if ids:
+        run_dir = get(session_.config).run_dir
+        run_dir.mkdir(parents=True, exist_ok=True)
+        write_json_atomic(run_dir / "plan.json", {"tasks": ids, "written": now_iso()})
+
+
 def prewarm_next(item: pytest.Item, nextitem: pytest.Item | None) -> None:
     session = get(item.config)
     if not session.options.prewarm or session.context is None or nextitem is None:
