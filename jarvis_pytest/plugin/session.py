@@ -218,6 +218,26 @@ def collect_report(report: pytest.TestReport) -> None:
             _CURRENT.results[value["task_id"]] = TaskResult.model_validate(value)
 
 
+SECRET_OPTION = ("key", "token", "secret", "password")
+
+
+def redacted_argv(argv: list[str]) -> list[str]:
+    """The command line with the values of secret options (`--planner-api-key K`, `--x-token=K`) hidden."""
+    out: list[str] = []
+    hide_next = False
+    for arg in argv:
+        name, eq, _ = arg.partition("=")
+        secret = arg.startswith("--") and any(w in name.lower() for w in SECRET_OPTION)
+        if hide_next:
+            out.append("***")
+        elif secret and eq:
+            out.append(f"{name}=***")
+        else:
+            out.append(arg)
+        hide_next = secret and not eq
+    return out
+
+
 def _write_run_files(session: JarvisSession) -> None:
     from jarvis_pytest.report.rollup import write_summary
 
@@ -226,7 +246,7 @@ def _write_run_files(session: JarvisSession) -> None:
     agent = results[0].agent if results else {}
     write_json_atomic(session.run_dir / "run.json", {
         "run_id": session.run_dir.name, "agent": agent, "started": session.started, "finished": now_iso(),
-        "argv": sys.argv[1:], "tasks": len(results),
+        "argv": redacted_argv(sys.argv[1:]), "tasks": len(results),
         "options": {"max_steps": session.options.limits.max_steps, "instances": session.options.instances},
     })
     write_summary(session.run_dir, results, agent)
