@@ -42,7 +42,15 @@ def recorder(device):
     events = lambda: [json.loads(l) for l in device.download("/tmp/events.log").decode().splitlines()]  # noqa: E731
     wait_for(lambda: device.run("test -s /tmp/events.log").returncode == 0 and events())
     device.run("truncate -s 0 /tmp/events.log")
-    yield lambda: wait_for(lambda: events() or None, 3) and events()
+
+    def read() -> list[dict]:
+        """Every event logged so far: a sentinel move is sent last and waited for (X delivers in order)."""
+        device.act(A.MoveTo(x=1919, y=1079))
+        is_sentinel = lambda e: e["type"] == "motion" and (e["x"], e["y"]) == (1919, 1079)  # noqa: E731
+        logged = wait_for(lambda: (ev := events()) and any(map(is_sentinel, ev)) and ev, 10)
+        return [e for e in logged if not is_sentinel(e)]
+
+    yield read
     device.run("pkill -f /tmp/recorder.py")
 
 
