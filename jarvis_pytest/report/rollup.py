@@ -1,209 +1,383 @@
-"""The paper's main table from per-task results: atomic TSR per platform; SW/MI/MD TSR and SSR; overall.
+"""The paper's result tables from per-task results (`results/model.py`).
 
-TSR = share of tasks whose every subtask passed. SSR (composed tasks only) = mean over tasks of
-passed subtasks / subtasks (the paper's definition); the raw subtask counts are kept beside it. Tasks that ended
-in an infrastructure error are excluded from every rate and counted apart; unfinished ("running") tasks are
-ignored and counted apart. 95 % intervals are percentile bootstraps over tasks with a seeded RNG, so the same
-results always give the same summary whatever order they arrive in.
+What is computed (paper, Experiments, "Metrics"; tables `main_results` and `confidence_intervals`):
+
+- TSR = share of tasks that passed (status "passed": every subtask passed), for atomic tasks per platform
+  (android, windows, ubuntu) and overall, and for composed tasks per category (sw, mi, md) and overall.
+- SSR (composed tasks only) = mean over tasks of passed/total subtasks (the paper's eq. 2). Beside it we keep the
+  raw subtask counts k/n summed over the tasks and their ratio, the *pooled* SSR. The two differ when tasks have
+  different numbers of subtasks. Note: the numbers printed in the paper's tables match the pooled ratio.
+- 95 % percentile-bootstrap intervals over tasks. Every group of tasks has its own `random.Random` seeded from
+  (seed, group name), and TSR and SSR of a group share the same resamples.
+- Success against the number of subtasks (the paper's figure), over all composed tasks and per category.
+- Tasks with status "error" (infrastructure failures) are left out of every rate and counted per category. Tasks
+  still "running" are left out too and counted as unfinished.
+
+Results are sorted by task id before anything is computed. The same set of results therefore gives the same
+summary.json byte for byte, whatever order they arrive in (one process, or xdist workers).
 """
 
 from __future__ import annotations
 
+import json
+import math
+import os
 import random
+import threading
+from collections import Counter
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Sequence
 
 from pydantic import BaseModel, Field
 
 from jarvis_pytest.results.model import TaskResult
-from jarvis_pytest.results.writer import write_json_atomic
 
 PLATFORMS = ("android", "windows", "ubuntu")
 COMPOSED = ("sw", "mi", "md")
+CATEGORIES = ("atomic", *COMPOSED)
+LEVEL = 0.95
+DASH = "–"
+_LABEL = {"android": "Android", "windows": "Windows", "ubuntu": "Ubuntu", "overall": "Overall",
+          "atomic": "Atomic", "sw": "SW", "mi": "MI", "md": "MD"}
+_STATUS_RANK = {"passed": 3, "failed": 3, "error": 2, "running": 1}
 
 
-class Cell(BaseModel):
-    """One table cell: the rate (None when n = 0), its raw counts and its 95 % bootstrap interval."""
+# ----------------------------------------------------------------------------------------------------- models
+
+
+class Rate(BaseModel):
+    """A task success rate: `k` of `n` tasks passed; `rate` and `ci` are None when n = 0."""
 
     rate: float | None
-    k: int | float  # a count; fractional only for SSR (sum of per-task ratios)
+    k: int
     n: int
     ci: tuple[float, float] | None = None
 
     def text(self) -> str:
-        if self.rate is None:
-            return "–"
-        k = f"{self.k:g}"
-        return f"{100 * self.rate:.1f} ({k}/{self.n})"
-
-    def ci_text(self) -> str:
-        return "–" if self.ci is None else f"[{100 * self.ci[0]:.1f}, {100 * self.ci[1]:.1f}]"
+        return _pct_counts(self.rate, self.k, self.n)
 
 
-class ComposedCell(BaseModel):
-    """TSR and SSR of a set of composed tasks; `subtasks` holds passed/total subtask counts."""
+class SubtaskRate(BaseModel):
+    """SSR of `tasks` composed tasks. `rate` is the mean of per-task passed/total ratios (paper eq. 2).
+    `k`/`n` count passed/total subtasks summed over the tasks, and `pooled_rate` = k/n."""
 
-    tsr: Cell
-    ssr: Cell
-    subtasks: tuple[int, int] = (0, 0)
+    rate: float | None
+    k: int
+    n: int
+    tasks: int
+    ci: tuple[float, float] | None = None
+    pooled_rate: float | None = None
+    pooled_ci: tuple[float, float] | None = None
+
+    def text(self) -> str:
+        return _pct_counts(self.rate, self.k, self.n)
+
+
+class Composed(BaseModel):
+    """One multi-task column pair of the main table."""
+
+    tsr: Rate
+    ssr: SubtaskRate
 
 
 class BySubtasks(BaseModel):
-    """Success against the number of subtasks (the paper's figure)."""
+    """Composed tasks with `subtasks` subtasks: `k` of `n` passed; `ssr` is the mean of per-task ratios."""
 
     subtasks: int
     n: int
     k: int
-    tsr: float | None
-    ssr: float | None
+    tsr: float
+    ssr: float
 
 
 class Summary(BaseModel):
+    """summary.json. Rates are fractions in [0, 1]; intervals are [lo, hi] or None when there is no task."""
+
     agent: str | None = None
-    atomic: dict[str, Cell]  # android, windows, ubuntu, overall
-    composed: dict[str, ComposedCell]  # sw, mi, md, overall
-    overall: dict[str, Cell]  # tsr over every task; ssr over composed tasks
-    by_subtasks: list[BySubtasks] = Field(default_factory=list)
-    errors: dict[str, int] = Field(default_factory=dict)  # per category; excluded from rates
-    unfinished: int = 0
+    atomic: dict[str, Rate]  # android, windows, ubuntu, overall
+    composed: dict[str, Composed]  # sw, mi, md, overall
+    overall: dict[str, Rate | SubtaskRate]  # "tsr": every counted task; "ssr": composed tasks (= composed overall)
+    by_subtasks: list[BySubtasks] = Field(default_factory=list)  # all composed tasks
+    by_subtasks_category: dict[str, list[BySubtasks]] = Field(default_factory=dict)  # sw, mi, md
+    errors: dict[str, int] = Field(default_factory=dict)  # per category; excluded from every rate
+    unfinished: dict[str, int] = Field(default_factory=dict)  # status "running", per category; ignored
     tasks: int = 0  # tasks counted in the rates
+    warnings: list[str] = Field(default_factory=list)  # inconsistent or unexpected results
     seed: int = 0
+    n_boot: int = 2000
+    level: float = LEVEL
 
 
-def _bootstrap(values: Sequence[float], rng: random.Random, n_boot: int) -> tuple[float, float] | None:
-    n = len(values)
+# ---------------------------------------------------------------------------------------------------- compute
+
+
+class _Task:
+    """What the rollup needs of one finished task."""
+
+    __slots__ = ("success", "passed", "total", "ratio")
+
+    def __init__(self, r: TaskResult):
+        self.success = 1 if r.status == "passed" else 0
+        self.passed = r.passed_subtasks
+        self.total = len(r.subtasks)
+        self.ratio = self.passed / self.total if self.total else 0.0
+
+
+def _interval(stats: list[float], level: float) -> tuple[float, float]:
+    """Percentile interval: cut the same number of resamples off each end."""
+    stats.sort()
+    cut = min(int(round((1 - level) / 2 * len(stats))), (len(stats) - 1) // 2)
+    return stats[cut], stats[len(stats) - 1 - cut]
+
+
+def _group(name: str, results: list[TaskResult], seed: int, n_boot: int) -> Composed:
+    """TSR and SSR of one group of tasks, with intervals from the same (paired) bootstrap resamples."""
+    tasks = [_Task(r) for r in results]
+    n = len(tasks)
     if n == 0:
-        return None
-    means = sorted(sum(values[rng.randrange(n)] for _ in range(n)) / n for _ in range(n_boot))
-    lo = means[int(0.025 * (n_boot - 1))]
-    hi = means[int(round(0.975 * (n_boot - 1)))]
-    return (lo, hi)
+        return Composed(tsr=Rate(rate=None, k=0, n=0), ssr=SubtaskRate(rate=None, k=0, n=0, tasks=0))
+    k = sum(t.success for t in tasks)
+    passed, total = sum(t.passed for t in tasks), sum(t.total for t in tasks)
+    rng = random.Random(f"jarvis-rollup/{seed}/{name}")  # str seeds are hashed with SHA-512: stable everywhere
+    tsr_b, ssr_b, pooled_b = [], [], []
+    for _ in range(n_boot):
+        sample = rng.choices(tasks, k=n)
+        tsr_b.append(sum(t.success for t in sample) / n)
+        ssr_b.append(math.fsum(t.ratio for t in sample) / n)  # fsum is exact: the order of a sample cannot matter
+        sample_total = sum(t.total for t in sample)
+        pooled_b.append(sum(t.passed for t in sample) / sample_total if sample_total else 0.0)
+    return Composed(
+        tsr=Rate(rate=k / n, k=k, n=n, ci=_interval(tsr_b, LEVEL)),
+        ssr=SubtaskRate(rate=math.fsum(t.ratio for t in tasks) / n, k=passed, n=total, tasks=n,
+                        ci=_interval(ssr_b, LEVEL), pooled_rate=passed / total if total else None,
+                        pooled_ci=_interval(pooled_b, LEVEL) if total else None))
 
 
-def _cell(values: list[float], rng: random.Random, n_boot: int) -> Cell:
-    n = len(values)
-    k = sum(values)
-    rate = k / n if n else None
-    ci = _bootstrap(values, rng, n_boot)
-    if ci is not None and rate is not None:  # float rounding must not put the point outside its interval
-        ci = (min(ci[0], rate), max(ci[1], rate))
-    return Cell(rate=rate, k=int(k) if float(k).is_integer() else round(k, 4), n=n, ci=ci)
+def _curve(results: list[TaskResult]) -> list[BySubtasks]:
+    sizes: dict[int, list[_Task]] = {}
+    for r in results:
+        sizes.setdefault(len(r.subtasks), []).append(_Task(r))
+    return [BySubtasks(subtasks=size, n=len(ts), k=sum(t.success for t in ts),
+                       tsr=sum(t.success for t in ts) / len(ts), ssr=math.fsum(t.ratio for t in ts) / len(ts))
+            for size, ts in sorted(sizes.items())]
 
 
-def _success(r: TaskResult) -> float:
-    return 1.0 if r.status == "passed" else 0.0
+def _dedupe(results: Sequence[TaskResult], warnings: list[str]) -> list[TaskResult]:
+    """One result per task id, sorted by id. A duplicated id keeps the most finished result, whatever the order:
+    status rank, then latest `finished`, then the larger JSON text."""
+    by_id: dict[str, TaskResult] = {}
+    rank = lambda r: (_STATUS_RANK.get(r.status, 0), r.finished, r.model_dump_json())  # noqa: E731
+    for r in results:
+        other = by_id.get(r.task_id)
+        if other is None or rank(r) > rank(other):
+            by_id[r.task_id] = r
+    counts = Counter(r.task_id for r in results)
+    warnings += [f"task {tid!r} appears {c} times; kept its {by_id[tid].status} result"
+                 for tid, c in sorted(counts.items()) if c > 1]
+    return [by_id[tid] for tid in sorted(by_id)]
 
 
-def _ratio(r: TaskResult) -> float:
-    return r.passed_subtasks / len(r.subtasks) if r.subtasks else 0.0
+def _atomic_platform(r: TaskResult) -> str | None:
+    platforms = [p.lower() for p in r.platforms]
+    return platforms[0] if len(platforms) == 1 and platforms[0] in PLATFORMS else None
 
 
-def rollup(results: Sequence[TaskResult], *, seed: int = 0, n_boot: int = 2000, agent: str | None = None) -> Summary:
-    """The summary tables of `results` (any order; later duplicates of a task id replace earlier ones)."""
-    by_id = {r.task_id: r for r in results}
-    ordered = [by_id[k] for k in sorted(by_id)]
-    done = [r for r in ordered if r.status in ("passed", "failed")]
-    errors: dict[str, int] = {}
+def _check(r: TaskResult, warnings: list[str]) -> None:
+    """Note results whose status disagrees with their subtask verdicts (the rates trust the status)."""
+    if r.status not in ("passed", "failed"):
+        return
+    all_passed = bool(r.subtasks) and all(s.passed for s in r.subtasks)
+    if not r.subtasks:
+        warnings.append(f"task {r.task_id!r} is {r.status} but has no subtask verdicts")
+    elif (r.status == "passed") != all_passed:
+        warnings.append(f"task {r.task_id!r} is {r.status} but {r.passed_subtasks}/{len(r.subtasks)} subtasks passed")
+    if r.category.lower() == "atomic" and _atomic_platform(r) is None:
+        warnings.append(f"atomic task {r.task_id!r} has platforms {r.platforms}: counted in Overall only")
+
+
+def rollup(results: Sequence[TaskResult], *, seed: int = 0, n_boot: int = 2000,
+           agent: str | None = None) -> Summary:
+    """The summary tables of `results`, in any order (see the module docstring for the definitions)."""
+    if n_boot < 1:
+        raise ValueError(f"n_boot must be at least 1, not {n_boot}")
+    warnings: list[str] = []
+    ordered = _dedupe(results, warnings)
+    errors = dict.fromkeys(CATEGORIES, 0)
+    unfinished = dict.fromkeys(CATEGORIES, 0)
+    done: dict[str, list[TaskResult]] = {c: [] for c in CATEGORIES}
+    unknown: dict[str, int] = {}
     for r in ordered:
-        if r.status == "error":
-            errors[r.category] = errors.get(r.category, 0) + 1
-    rng = random.Random(seed)
+        cat = r.category.lower()
+        if cat not in done:
+            unknown[r.category] = unknown.get(r.category, 0) + 1
+        elif r.status == "error":
+            errors[cat] += 1
+        elif r.status == "running":
+            unfinished[cat] += 1
+        else:
+            _check(r, warnings)
+            done[cat].append(r)
+    warnings += [f"{n} task(s) of unknown category {c!r} ignored" for c, n in sorted(unknown.items())]
 
-    def cell(rs: list[TaskResult], f: Callable[[TaskResult], float]) -> Cell:
-        return _cell([f(r) for r in rs], rng, n_boot)
+    def tsr(name: str, rs: list[TaskResult]) -> Rate:  # atomic tasks: TSR only (SSR is for composed tasks)
+        return _group(name, rs, seed, n_boot).tsr
 
-    atomic = [r for r in done if r.category == "atomic"]
-    atomic_table = {p: cell([r for r in atomic if r.platforms == [p]], _success) for p in PLATFORMS}
-    atomic_table["overall"] = cell(atomic, _success)
-    composed_table: dict[str, ComposedCell] = {}
-    composed_all = [r for r in done if r.category in COMPOSED]
-    for cat, rs in [(c, [r for r in done if r.category == c]) for c in COMPOSED] + [("overall", composed_all)]:
-        composed_table[cat] = ComposedCell(
-            tsr=cell(rs, _success), ssr=cell(rs, _ratio),
-            subtasks=(sum(r.passed_subtasks for r in rs), sum(len(r.subtasks) for r in rs)))
-    by_size: dict[int, list[TaskResult]] = {}
-    for r in composed_all:
-        by_size.setdefault(len(r.subtasks), []).append(r)
-    curve = [BySubtasks(subtasks=size, n=len(rs), k=int(sum(map(_success, rs))),
-                        tsr=sum(map(_success, rs)) / len(rs), ssr=sum(map(_ratio, rs)) / len(rs))
-             for size, rs in sorted(by_size.items())]
+    atomic = {p: tsr(f"atomic/{p}", [r for r in done["atomic"] if _atomic_platform(r) == p]) for p in PLATFORMS}
+    atomic["overall"] = tsr("atomic/overall", done["atomic"])
+    composed_all = sorted((r for c in COMPOSED for r in done[c]), key=lambda r: r.task_id)
+    composed = {c: _group(f"composed/{c}", done[c], seed, n_boot) for c in COMPOSED}
+    composed["overall"] = _group("composed/overall", composed_all, seed, n_boot)
+    everything = sorted(done["atomic"] + composed_all, key=lambda r: r.task_id)
     return Summary(
-        agent=agent, atomic=atomic_table, composed=composed_table,
-        overall={"tsr": cell(done, _success), "ssr": composed_table["overall"].ssr},
-        by_subtasks=curve, errors=dict(sorted(errors.items())),
-        unfinished=sum(1 for r in ordered if r.status == "running"), tasks=len(done), seed=seed)
+        agent=agent, atomic=atomic, composed=composed,
+        overall={"tsr": tsr("all", everything), "ssr": composed["overall"].ssr},
+        by_subtasks=_curve(composed_all), by_subtasks_category={c: _curve(done[c]) for c in COMPOSED},
+        errors=errors, unfinished=unfinished, tasks=len(everything), warnings=sorted(warnings),
+        seed=seed, n_boot=n_boot, level=LEVEL)
 
 
-NOTE = ("Rates in % with raw counts (k/n); errors (infrastructure failures) are excluded from the rates and "
-        "counted apart; SSR is the mean over tasks of passed/total subtasks.")
+# ----------------------------------------------------------------------------------------------------- render
 
 
-def _table(header: list[str], rows: list[list[str]]) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(row) + " |" for row in rows]
-    return "\n".join(lines)
+def _pct(rate: float | None) -> str:
+    return DASH if rate is None else f"{100 * rate:.1f}"
+
+
+def _pct_counts(rate: float | None, k: int, n: int) -> str:
+    return DASH if rate is None else f"{100 * rate:.1f} ({k}/{n})"
+
+
+def _ci(ci: tuple[float, float] | None) -> str:
+    return DASH if ci is None else f"[{100 * ci[0]:.1f}, {100 * ci[1]:.1f}]"
+
+
+def _md_table(header: list[str], rows: list[list[str]]) -> list[str]:
+    esc = lambda s: s.replace("|", "\\|")  # noqa: E731
+    return ["| " + " | ".join(map(esc, header)) + " |", "|---" + "|--:" * (len(header) - 1) + "|",
+            *("| " + " | ".join(map(esc, row)) + " |" for row in rows), ""]
+
+
+def _main_cells(s: Summary) -> tuple[list[Rate], list[Rate | SubtaskRate]]:
+    atomic = [s.atomic[k] for k in (*PLATFORMS, "overall")]
+    multi = [cell for c in (*COMPOSED, "overall") for cell in (s.composed[c].tsr, s.composed[c].ssr)]
+    return atomic, multi
+
+
+def _notes(s: Summary) -> list[str]:
+    n_err, n_run = sum(s.errors.values()), sum(s.unfinished.values())
+    return [
+        "Notes:",
+        "",
+        "- Cells are `rate % (k/n)`. For TSR, k/n counts tasks. For SSR, k/n counts passed/total subtasks summed "
+        "over the tasks, while the rate is the paper's SSR (eq. 2): the mean over composed tasks of each task's "
+        "passed/total. The pooled ratio k/n is given in Table 2 and differs when tasks have different numbers of "
+        "subtasks. `–`: no task in the cell.",
+        f"- Tasks that ended in an infrastructure error (status `error`, {n_err} here) are excluded from every "
+        f"rate and counted apart, per category; unfinished tasks (status `running`, {n_run} here) are ignored.",
+        f"- Intervals: {100 * s.level:g} % percentile bootstrap over tasks, {s.n_boot} resamples, seed {s.seed}.",
+        "",
+    ]
 
 
 def render_markdown(s: Summary) -> str:
-    """summary.md: the paper's main table, intervals, success against subtasks, errors."""
-    cols = ["Android", "Windows", "Ubuntu", "Overall"]
-    keys = [*PLATFORMS, "overall"]
-    ckeys = [*COMPOSED, "overall"]
-    out = [f"# Results{f' — {s.agent}' if s.agent else ''}", "", "## Atomic tasks (TSR)", "",
-           _table(cols, [[s.atomic[k].text() for k in keys]]), "",
-           "## Composed tasks", "",
-           _table(["", "SW", "MI", "MD", "Overall"],
-                  [["TSR", *[s.composed[k].tsr.text() for k in ckeys]],
-                   ["SSR", *[s.composed[k].ssr.text() for k in ckeys]],
-                   ["subtasks passed", *[f"{s.composed[k].subtasks[0]}/{s.composed[k].subtasks[1]}" for k in ckeys]]]),
-           "", f"Overall TSR (all tasks): {s.overall['tsr'].text()}", "",
-           "## 95 % bootstrap confidence intervals", "",
-           _table(["", *cols], [["atomic TSR", *[s.atomic[k].ci_text() for k in keys]]]), "",
-           _table(["", "SW", "MI", "MD", "Overall"],
-                  [["TSR", *[s.composed[k].tsr.ci_text() for k in ckeys]],
-                   ["SSR", *[s.composed[k].ssr.ci_text() for k in ckeys]]]), ""]
+    """summary.md: the paper's main table (atomic, multi), intervals, success against subtasks, errors."""
+    name = s.agent or "agent"
+    atomic, multi = _main_cells(s)
+    out = [f"# JarvisGUI results{f' — {s.agent}' if s.agent else ''}", "",
+           f"Tasks counted: {s.tasks}. Not counted: errors {sum(s.errors.values())}, "
+           f"unfinished {sum(s.unfinished.values())}.", "",
+           "## Table 1a. Atomic tasks: TSR (%)", ""]
+    out += _md_table(["Model", "Android", "Windows", "Ubuntu", "Overall"], [[name, *(c.text() for c in atomic)]])
+    out += ["## Table 1b. Multi-tasks: TSR and SSR (%)", ""]
+    out += _md_table(["Model", *(f"{_LABEL[c]} {m}" for c in (*COMPOSED, "overall") for m in ("TSR", "SSR"))],
+                     [[name, *(c.text() for c in multi)]])
+    out += ["Row of the paper's main table (after Model and Size):", "", "```latex",
+            " & ".join(_pct(c.rate) for c in [*atomic, *multi]) + r" \\", "```", ""]
+    rows = [[f"Atomic {_LABEL[p]} TSR", _pct(s.atomic[p].rate), _ci(s.atomic[p].ci), f"{s.atomic[p].k}/{s.atomic[p].n}"]
+            for p in (*PLATFORMS, "overall")]
+    for c in (*COMPOSED, "overall"):
+        t, u = s.composed[c].tsr, s.composed[c].ssr
+        rows += [[f"{_LABEL[c]} TSR", _pct(t.rate), _ci(t.ci), f"{t.k}/{t.n} tasks"],
+                 [f"{_LABEL[c]} SSR", _pct(u.rate), _ci(u.ci), f"{u.k}/{u.n} subtasks, {u.tasks} tasks"],
+                 [f"{_LABEL[c]} SSR (pooled)", _pct(u.pooled_rate), _ci(u.pooled_ci), f"{u.k}/{u.n} subtasks"]]
+    t = s.overall["tsr"]
+    rows.append(["All tasks TSR", _pct(t.rate), _ci(t.ci), f"{t.k}/{t.n} tasks"])
+    out += [f"## Table 2. Rates with {100 * s.level:g} % bootstrap confidence intervals (%)", ""]
+    out += _md_table(["Cell", "Rate", "95 % CI", "Counts"], rows)
     if s.by_subtasks:
-        out += ["## Success against the number of subtasks", "",
-                _table(["subtasks", "tasks", "TSR", "SSR"],
-                       [[str(b.subtasks), str(b.n), f"{100 * b.tsr:.1f} ({b.k}/{b.n})", f"{100 * b.ssr:.1f}"]
-                        for b in s.by_subtasks]), ""]
-    errs = ", ".join(f"{k}: {v}" for k, v in s.errors.items()) or "none"
-    out += [f"Errors (not in the rates): {errs}. Unfinished: {s.unfinished}. Tasks counted: {s.tasks}.", "",
-            NOTE, ""]
+        per_cat = {c: {b.subtasks: b for b in s.by_subtasks_category.get(c, [])} for c in COMPOSED}
+        cat_cell = lambda b: DASH if b is None else _pct_counts(b.tsr, b.k, b.n)  # noqa: E731
+        out += ["## Table 3. Success against the number of subtasks (composed tasks, %)", ""]
+        out += _md_table(["Subtasks", "Tasks", "TSR", "SSR", *(f"{_LABEL[c]} TSR" for c in COMPOSED)],
+                         [[str(b.subtasks), str(b.n), _pct_counts(b.tsr, b.k, b.n), _pct(b.ssr),
+                           *(cat_cell(per_cat[c].get(b.subtasks)) for c in COMPOSED)] for b in s.by_subtasks])
+    out += ["## Not counted", ""]
+    out += _md_table(["", *(_LABEL[c] for c in CATEGORIES), "Total"],
+                     [[label, *(str(d.get(c, 0)) for c in CATEGORIES), str(sum(d.values()))]
+                      for label, d in (("Errors (excluded)", s.errors), ("Unfinished", s.unfinished))])
+    out += _notes(s)
+    if s.warnings:
+        out += ["Warnings:", "", *(f"- {w}" for w in s.warnings), ""]
     return "\n".join(out)
 
 
 def render_terminal(s: Summary) -> str:
-    """A compact fixed-width version for pytest's terminal summary."""
-    w = 16
-    row = lambda label, cells: f"{label:<10}" + "".join(f"{c:>{w}}" for c in cells)  # noqa: E731
-    lines = [row("atomic", ["Android", "Windows", "Ubuntu", "Overall"]),
-             row("TSR", [s.atomic[k].text() for k in (*PLATFORMS, "overall")]),
-             row("composed", ["SW", "MI", "MD", "Overall"]),
-             row("TSR", [s.composed[k].tsr.text() for k in (*COMPOSED, "overall")]),
-             row("SSR", [s.composed[k].ssr.text() for k in (*COMPOSED, "overall")])]
-    errs = sum(s.errors.values())
-    lines.append(f"overall TSR {s.overall['tsr'].text()}; errors (not counted) {errs}; unfinished {s.unfinished}")
+    """Compact fixed-width tables for pytest's terminal summary."""
+    atomic = [s.atomic[k].text() for k in (*PLATFORMS, "overall")]
+    tsr = [s.composed[c].tsr.text() for c in (*COMPOSED, "overall")]
+    ssr = [s.composed[c].ssr.text() for c in (*COMPOSED, "overall")]
+    w = max(12, *(len(x) for x in atomic + tsr + ssr)) + 2
+    row = lambda label, cells: (f"{label:<8}" + "".join(f"{c:>{w}}" for c in cells)).rstrip()  # noqa: E731
+    lines = [row("atomic", ["Android", "Windows", "Ubuntu", "Overall"]), row("  TSR", atomic),
+             row("multi", ["SW", "MI", "MD", "Overall"]), row("  TSR", tsr), row("  SSR", ssr)]
+    if s.by_subtasks:
+        lines.append("by subtasks: " + "  ".join(f"{b.subtasks}: {_pct_counts(b.tsr, b.k, b.n)}"
+                                                  for b in s.by_subtasks))
+    errs = ", ".join(f"{c} {n}" for c, n in s.errors.items() if n) or "0"
+    lines.append(f"{s.tasks} tasks counted; errors (not in rates): {errs}; unfinished: {sum(s.unfinished.values())}"
+                 "; SSR = mean of per-task ratios, (k/n) = subtasks")
+    lines += [f"warning: {w}" for w in s.warnings]
     return "\n".join(lines)
 
 
+# ------------------------------------------------------------------------------------------------------- files
+
+
 def load_results(run_dir: Path) -> tuple[list[TaskResult], list[str]]:
-    """Every readable `tasks/*/result.json` of a run, and a problem line for each unreadable one."""
+    """`(results, problems)`: every readable `tasks/*/result.json` of a run (sorted by path), and one line per
+    file that could not be read or validated (corrupted, truncated, wrong schema); such files are skipped."""
     results, problems = [], []
     for path in sorted((Path(run_dir) / "tasks").glob("*/result.json")):
         try:
-            results.append(TaskResult.model_validate_json(path.read_text()))
-        except (OSError, ValueError) as exc:
-            problems.append(f"{path}: {str(exc).splitlines()[0]}")
+            results.append(TaskResult.model_validate_json(path.read_bytes()))
+        except (OSError, ValueError) as exc:  # pydantic's ValidationError is a ValueError
+            first = str(exc).strip().splitlines()
+            problems.append(f"{path}: skipped ({exc.__class__.__name__}: {first[0] if first else ''})")
     return results, problems
 
 
-def write_summary(run_dir: Path, results: Sequence[TaskResult], agent: dict[str, Any] | None = None) -> Summary:
-    """Write summary.json and summary.md of `results` into `run_dir` (atomically)."""
-    summary = rollup(results, agent=(agent or {}).get("name"))
+def _write_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def summary_json(summary: Summary) -> str:
+    """The exact text of summary.json: sorted keys, indent 2, trailing newline."""
+    return json.dumps(summary.model_dump(mode="json"), indent=2, sort_keys=True, ensure_ascii=False) + "\n"
+
+
+def write_summary(run_dir: Path, results: Sequence[TaskResult], agent: dict[str, Any] | None = None, *,
+                  seed: int = 0, n_boot: int = 2000) -> Summary:
+    """Write `summary.json` and `summary.md` of `results` into `run_dir`, each through a temporary file and a
+    rename; returns the summary. `agent` is the agent configuration; its "name" is shown."""
+    name = (agent or {}).get("name")
+    summary = rollup(results, seed=seed, n_boot=n_boot, agent=str(name) if name is not None else None)
+    run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(run_dir / "summary.json", summary.model_dump(mode="json"))
-    tmp = run_dir / ".summary.md.tmp"
-    tmp.write_text(render_markdown(summary))
-    tmp.replace(run_dir / "summary.md")
+    _write_atomic(run_dir / "summary.json", summary_json(summary))
+    _write_atomic(run_dir / "summary.md", render_markdown(summary))
     return summary
