@@ -51,6 +51,8 @@ def model_run(device_images, tmp_path_factory):
                      "--grounder-base-url", fake.url, "--grounder-model", "grounder",
                      "--planner-api-key", "sk-secret-never-written")
         grounder_requests = fake.requests_for("grounder")
+        prompt = fake.requests_for("planner")[0].text()
+    assert "copyparty" in prompt and "http://transfer:5244" in prompt and "/data" in prompt  # the real drive
     return run_dir, proc, grounder_requests
 
 

@@ -11,7 +11,8 @@ from typing import Any, Callable
 
 from jarvis_pytest.agents.protocol import Agent, TaskContext
 from jarvis_pytest.devices.actions import PLATFORMS
-from jarvis_pytest.devices.backend import TRANSFER_ALIAS, TRANSFER_PASSWORD, TRANSFER_PORT, TRANSFER_USER
+from jarvis_pytest.devices.backend import (TRANSFER_ALIAS, TRANSFER_FOLDER, TRANSFER_PASSWORD, TRANSFER_PORT,
+                                           TRANSFER_USER)
 from jarvis_pytest.errors import ConfigError, InfrastructureError
 from jarvis_pytest.plugin.evaluation import evaluate_subtasks
 from jarvis_pytest.plugin.idle import idle_observation
@@ -67,7 +68,8 @@ def run_task(task: dict[str, Any], ctx: RunContext) -> TaskResult:
         run_setup(subtasks, env.devices)
         t_setup = time.monotonic()
         transfer = {"url": f"http://{TRANSFER_ALIAS}:{TRANSFER_PORT}", "user": TRANSFER_USER,
-                    "password": TRANSFER_PASSWORD}
+                    "password": TRANSFER_PASSWORD, "folder": TRANSFER_FOLDER,
+                    "flavour": getattr(env.transfer, "flavour", "copyparty")}
         ctx.agent.reset(TaskContext(task_id=task["id"], instruction=task["instruction"], platforms=platforms,
                                     transfer=transfer, subtasks=tuple(subtasks)))
         if hasattr(ctx.agent, "attach_devices"):
