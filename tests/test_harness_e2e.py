@@ -109,3 +109,35 @@ def test_a_killed_run_keeps_its_results_and_resumes(device_images, tmp_path):
     results = {r.task_id: r for r in load_results(tmp_path)[0]}
     assert len(results) == 6 and all(r.status == "passed" for r in results.values())
     assert all(results[t].started == started for t, started in finished.items())  # not run again
+
+
+BROKEN_SETUP = {
+    "id": "ubuntu-terminal-broken_setup", "platform": "ubuntu", "app": "Terminal",
+    "instruction": "Create the file {{path}}.",
+    "inputs": {"path": {"type": "txt_file", "choices": ["/home/user/made.txt"]}},
+    "config": [{"type": "command", "command": "test -e /tmp/setup-may-run || exit 7"}],
+    "evaluate": [{"func": "file_exists", "args": {"path": "{{path}}"}}],
+    "solution": [{"command": "touch '{{path}}'"}],
+}
+
+
+def test_infrastructure_errors_are_errors_apart_and_rerun(device_images, tmp_path):
+    library = tmp_path / "library"
+    (library / "ubuntu").mkdir(parents=True)
+    (library / "ubuntu" / "broken.json").write_text(json.dumps(BROKEN_SETUP))
+    run_dir = tmp_path / "run"
+    cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:xdist", str(REPO / "tasks"),
+           "--library", str(library), "--dataset", str(tmp_path / "none.json"), "--instances", "1",
+           "--results-dir", str(run_dir), "--agent", "oracle", "-k", "test_atomic"]
+    (tmp_path / "none.json").write_text('{"tasks": []}')
+    proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert "1 error" in proc.stdout and "failed" not in proc.stdout.splitlines()[-1], proc.stdout[-3000:]
+    assert "setup command failed (7)" in proc.stdout
+    s = summary_of(run_dir)
+    assert s["errors"]["atomic"] == 1 and s["atomic"]["overall"]["n"] == 0  # not counted as an agent failure
+    # the error is not kept by --resume: once the device can be set up, the rerun runs the task
+    fixed = dict(BROKEN_SETUP, config=[{"type": "command", "command": "true"}])
+    (library / "ubuntu" / "broken.json").write_text(json.dumps(fixed))
+    proc = subprocess.run(cmd + ["--resume", str(run_dir)], cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-3000:]
+    assert summary_of(run_dir)["atomic"]["overall"]["k"] == 1
