@@ -134,6 +134,17 @@ def test_typing_is_exact_in_a_real_editor(device):
     device.run("pkill mousepad")
 
 
+def test_pyautogui_script(device, recorder):
+    script = ("import pyautogui, time\npyautogui.moveTo(200, 210)\npyautogui.click(220, 230, button='right')\n"
+              "pyautogui.doubleClick(240, 250)\npyautogui.scroll(-2)\npyautogui.hotkey('ctrl', 'a')\n")
+    assert device.act(A.Pyautogui(script=script)).ok
+    ev = recorder()
+    assert presses(ev) == [(3, 220, 230), (1, 240, 250), (1, 240, 250), (5, 240, 250), (5, 240, 250)]
+    assert [e["key"] for e in ev if e["type"] == "key_down"] == ["Control_L", "a"]
+    bad = device.act(A.Pyautogui(script="pyautogui.nosuchcall()"))
+    assert not bad.ok and "AttributeError" in bad.error and device.health().desktop
+
+
 def test_wait_done_fail(device):
     t0 = time.monotonic()
     assert device.act(A.Wait(seconds=0.3)).ok and time.monotonic() - t0 >= 0.3

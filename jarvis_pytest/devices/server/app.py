@@ -90,7 +90,12 @@ def execute(action: A.Action) -> None:
     elif t == "SYSTEM_BUTTON":
         raise HttpError(400, "SYSTEM_BUTTON is an Android action; not supported on this desktop device")
     elif t == "PYAUTOGUI":
-        raise HttpError(400, "PYAUTOGUI scripts are not supported on this device; use the structured actions")
+        from jarvis_pytest.devices.server.pyautogui_compat import run_script
+
+        try:
+            run_script(action.script, kb)
+        except Exception as exc:  # the script's own error is the agent's to see, not a server failure
+            raise HttpError(400, f"PYAUTOGUI script failed: {exc.__class__.__name__}: {exc}") from None
     else:  # pragma: no cover - the union is closed
         raise HttpError(400, f"unknown action type {t}")
 
