@@ -141,3 +141,30 @@ def test_infrastructure_errors_are_errors_apart_and_rerun(device_images, tmp_pat
     proc = subprocess.run(cmd + ["--resume", str(run_dir)], cwd=REPO, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stdout[-3000:]
     assert summary_of(run_dir)["atomic"]["overall"]["k"] == 1
+
+
+def test_step_timeout_and_module_class_agent(device_images, tmp_path):
+    env = dict(os.environ, PYTHONPATH=str(REPO / "tests" / "data" / "agents"))
+    cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:xdist", str(REPO / "tasks"),
+           "--results-dir", str(tmp_path), "--instances", "1", "-k", "thunar", "--agent", "slow_agent:SlowAgent",
+           "--agent-option", "seconds=20", "--step-timeout", "1"]
+    t0 = time.monotonic()
+    proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=300, env=env)
+    assert proc.returncode == 1 and time.monotonic() - t0 < 60, proc.stdout[-3000:]
+    (result,) = load_results(tmp_path)[0]
+    assert result.status == "failed" and result.end_reason == "timeout"
+    assert result.agent == {"name": "slow", "seconds": 20.0}
+
+
+def test_keep_devices_leaves_them_running_and_says_how_to_reach_them(device_images, tmp_path):
+    cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:xdist", str(REPO / "tasks"),
+           "--results-dir", str(tmp_path), "--instances", "1", "-k", "thunar", "--agent", "noop", "--keep-devices"]
+    proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=300)
+    try:
+        assert "docker exec -it jarvis-" in proc.stderr + proc.stdout
+        import docker
+
+        kept = docker.from_env().containers.list(filters={"label": f"org.jarvis.run={tmp_path.name}"})
+        assert sorted(c.labels["org.jarvis.role"] for c in kept) == ["device", "transfer"]
+    finally:
+        subprocess.run([sys.executable, "-m", "jarvis_pytest.cli", "cleanup", "--run", tmp_path.name], check=True)

@@ -275,4 +275,5 @@ def terminal_summary(terminalreporter, config: pytest.Config) -> None:
 
 
 def _print_kept(env: Any) -> None:
-    print(f"\n[jarvis] --keep-devices: {env.describe()}", file=sys.stderr, flush=True)
+    # the process's real stderr: pytest captures sys.stderr while a test runs
+    print(f"\n[jarvis] --keep-devices: {env.describe()}", file=sys.__stderr__, flush=True)
