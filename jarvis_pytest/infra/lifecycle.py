@@ -24,6 +24,7 @@ from jarvis_pytest.infra.transfer import TRANSFER_CLIENTS
 LABEL_RUN, LABEL_WORKER, LABEL_ROLE, LABEL_PLATFORM = ("org.jarvis.run", "org.jarvis.worker", "org.jarvis.role",
                                                        "org.jarvis.platform")
 TRANSFER_IMAGE = "transfer"
+TRANSFER_READY_TIMEOUT = 60.0  # the drive's own allowance; `Limits.ready_timeout` is the devices'
 
 
 @dataclass(frozen=True)
@@ -32,7 +33,7 @@ class Limits:
 
     memory: str | None = "4g"
     cpus: float | None = None
-    ready_timeout: float = 60.0
+    ready_timeout: float = 60.0  # seconds for a device to become ready
 
 
 @dataclass
@@ -157,7 +158,7 @@ class Lifecycle:
             def ready(role: str) -> None:
                 try:
                     if role == "transfer":
-                        transfer.wait_ready(self.limits.ready_timeout)
+                        transfer.wait_ready(TRANSFER_READY_TIMEOUT)
                     else:
                         backends[role].wait_ready(urls[role], self.limits.ready_timeout)
                 except InfrastructureError as exc:
