@@ -17,6 +17,32 @@ import docker
 from jarvis_pytest.errors import InfrastructureError
 
 DOCKERD_LOG = Path("/var/log/jarvis-dockerd.log")
+DOCKERD_PIDFILES = (Path("/var/run/docker.pid"), Path("/var/run/docker/containerd/containerd.pid"))
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+        return True
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+
+
+def _clear_stale_pidfiles(wait_seconds: float = 30.0) -> None:
+    """A daemon killed without cleanup leaves its pid file, and a new dockerd then refuses to start: remove
+    files whose process is gone; wait (bounded) for a daemon that is still shutting down."""
+    for pidfile in DOCKERD_PIDFILES:
+        try:
+            pid = int(pidfile.read_text().strip() or 0)
+        except (OSError, ValueError):
+            continue
+        deadline = time.monotonic() + wait_seconds
+        while pid and _alive(pid) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        if not pid or not _alive(pid):
+            pidfile.unlink(missing_ok=True)
 
 
 def client(timeout: int = 120) -> docker.DockerClient:
@@ -77,18 +103,23 @@ def ensure_engine(wait_seconds: float = 60.0) -> None:
         )
     if Path("/run/systemd/system").is_dir() and shutil.which("systemctl"):
         subprocess.run(["systemctl", "start", "docker"], check=False)
+    daemon = None
     if not _ping():
+        _clear_stale_pidfiles()
         print(f"[engine] starting dockerd (log: {DOCKERD_LOG})", flush=True)
         log = open(DOCKERD_LOG, "ab")
-        subprocess.Popen(["dockerd"], stdout=log, stderr=log, stdin=subprocess.DEVNULL, start_new_session=True)
+        daemon = subprocess.Popen(["dockerd"], stdout=log, stderr=log, stdin=subprocess.DEVNULL,
+                                  start_new_session=True)
     deadline = time.monotonic() + wait_seconds
     while time.monotonic() < deadline:
         if _ping():
             print("[engine] Docker engine is up", flush=True)
             return
+        if daemon is not None and daemon.poll() is not None:
+            break  # dockerd exited: no point in waiting
         time.sleep(0.5)
     tail = DOCKERD_LOG.read_text(errors="replace")[-2000:] if DOCKERD_LOG.exists() else ""
-    raise InfrastructureError(f"dockerd did not answer within {wait_seconds:.0f} s; last log lines:\n{tail}")
+    raise InfrastructureError(f"dockerd did not start (see {DOCKERD_LOG}); last log lines:\n{tail}")
 
 
 def main_ensure(_args=None) -> int:
