@@ -41,3 +41,40 @@ def ubuntu_env(device_images):
     yield env
     env.close()
     cleanup(run_id)
+
+
+STANDIN_PLATFORMS = ("standin-a", "standin-b")
+
+
+def register_standin_backends() -> tuple[str, ...]:
+    """Two light stand-in device platforms for infrastructure tests: real containers of the transfer image whose
+    "control server" is `python3 -m http.server` on port 8000 (ready when it answers); devices are their URLs."""
+    import time
+
+    import httpx
+
+    from jarvis_pytest.devices.backend import Backend, register_backend
+    from jarvis_pytest.errors import InfrastructureError
+
+    def wait_ready(url: str, timeout: float) -> None:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            try:
+                if httpx.get(url, timeout=1).status_code == 200:
+                    return
+            except httpx.HTTPError:
+                pass
+            time.sleep(0.05)
+        raise InfrastructureError(f"stand-in device at {url} not ready after {timeout:.1f} s")
+
+    for platform in STANDIN_PLATFORMS:
+        register_backend(Backend(platform=platform, image="transfer", port=8000, connect=lambda url: url,
+                                 wait_ready=wait_ready,
+                                 container_options={"command": ["python3", "-m", "http.server", "8000"]}))
+    return STANDIN_PLATFORMS
+
+
+@pytest.fixture(scope="session")
+def standin_platforms(device_images) -> tuple[str, ...]:
+    """The stand-in platforms, registered (see `register_standin_backends`)."""
+    return register_standin_backends()

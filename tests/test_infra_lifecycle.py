@@ -1,5 +1,5 @@
-"""Task environments on real containers: the transfer drive across devices, loopback-only ports, readiness
-failures with logs, the pre-warm pool, and cleanup after a killed run."""
+"""Task environments on real containers: loopback-only ports, labels and limits, readiness failures with logs,
+the pre-warm pool, and cleanup after a killed run."""
 
 from __future__ import annotations
 
@@ -9,15 +9,16 @@ import subprocess
 import sys
 import time
 import uuid
+from concurrent.futures import ThreadPoolExecutor
 
 import docker
-import httpx
 import pytest
 
 from jarvis_pytest.devices.backend import Backend, register_backend
 from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.infra.cleanup import cleanup
-from jarvis_pytest.infra.lifecycle import LABEL_RUN, Lifecycle, Limits
+from jarvis_pytest.infra.containers import LABEL_HOST, LABEL_PID, LABEL_PLATFORM, LABEL_ROLE, LABEL_RUN, LABEL_WORKER
+from jarvis_pytest.infra.lifecycle import Lifecycle, Limits
 from jarvis_pytest.infra.pool import Pool
 
 pytestmark = pytest.mark.containers
@@ -26,85 +27,172 @@ pytestmark = pytest.mark.containers
 def leftovers(run_id: str) -> list[str]:
     d = docker.from_env()
     label = {"label": f"{LABEL_RUN}={run_id}"}
-    return ([c.name for c in d.containers.list(all=True, filters=label)]
-            + [n.name for n in d.networks.list(filters=label)] + [v.name for v in d.volumes.list(filters=label)])
+    return sorted([c.name for c in d.containers.list(all=True, filters=label)]
+                  + [n.name for n in d.networks.list(filters=label)] + [v.name for v in d.volumes.list(filters=label)])
 
 
-def test_transfer_drive_between_devices_and_host(ubuntu_env, device_images):
-    device = ubuntu_env.devices["ubuntu"]
-    put = device.run("printf 'made on ubuntu' > /tmp/a.txt && curl -s -o /dev/null -w '%{http_code}' -T /tmp/a.txt "
-                     "-H 'PW: agentPassword' http://transfer:5244/shared/a.txt")
-    assert put.stdout == "201", put
-    assert ubuntu_env.transfer.walk() == ["/shared/a.txt"]  # the empty /data folder holds no file
-    assert ubuntu_env.transfer.list("/") == (["data", "shared"], [])
-    assert ubuntu_env.transfer.download("/shared/a.txt") == b"made on ubuntu"
-    # a second device on the task's network downloads it through the drive's HTTP interface
-    other = docker.from_env().containers.run(device_images["ubuntu"], ["bash", "-c", "sleep 60"], detach=True,
-                                             network=ubuntu_env.network.name, labels={"org.jarvis.test": "1"})
+def bindings(container) -> list[dict]:
+    container.reload()
+    return [b for bs in container.attrs["NetworkSettings"]["Ports"].values() if bs for b in bs]
+
+
+def never_ready(url: str, timeout: float) -> None:
+    """A backend's `wait_ready` whose control server never answers."""
+    time.sleep(timeout)
+    raise InfrastructureError(f"control server at {url} does not answer")
+
+
+def test_ports_labels_limits_and_network(standin_platforms, device_images):
+    run_id = f"test-{uuid.uuid4().hex[:8]}"
+    env = Lifecycle(run_id, "gw3", Limits(memory="300m", cpus=0.5)).boot(standin_platforms)
     try:
-        got = other.exec_run(["curl", "-s", "-H", "PW: agentPassword", "http://transfer:5244/shared/a.txt"])
-        assert got.output == b"made on ubuntu"
-        ubuntu_env.transfer.upload("/from_host/b.txt", b"made on the host")
-        got = other.exec_run(["curl", "-s", "-u", "agent:agentPassword", "http://transfer:5244/from_host/b.txt"])
-        assert got.output == b"made on the host"
+        assert sorted(env.containers) == sorted([*standin_platforms, "transfer"])
+        for role, c in env.containers.items():
+            bs = bindings(c)
+            assert bs and all(b["HostIp"] == "127.0.0.1" for b in bs), bs  # never 0.0.0.0 or ::
+            assert c.labels[LABEL_RUN] == run_id and c.labels[LABEL_WORKER] == "gw3"
+            assert c.labels[LABEL_ROLE] == ("transfer" if role == "transfer" else "device")
+            assert c.labels[LABEL_PLATFORM] == ("" if role == "transfer" else role)
+            assert c.labels[LABEL_PID] == str(os.getpid()) and c.labels[LABEL_HOST]
+            assert set(c.attrs["NetworkSettings"]["Networks"]) == {env.network.name}  # the task's network only
+            assert env.image_ids[role] == c.attrs["Image"]
+            assert env.urls[role].startswith("http://127.0.0.1:")
+            if role != "transfer":
+                assert c.attrs["HostConfig"]["Memory"] == 300 * 2**20
+                assert c.attrs["HostConfig"]["NanoCpus"] == 500_000_000
+        assert env.network.attrs["Labels"][LABEL_RUN] == run_id
+        transfer = env.containers["transfer"]
+        assert "transfer" in transfer.attrs["NetworkSettings"]["Networks"][env.network.name]["Aliases"]
+        assert env.run_id == run_id and "jarvis cleanup --run" in env.describe()
     finally:
-        other.remove(force=True)
-    ubuntu_env.transfer.delete("/from_host/b.txt")
-    assert ubuntu_env.transfer.walk() == ["/shared/a.txt"]
+        env.close()
+    env.close()  # idempotent
+    assert leftovers(run_id) == []
 
 
-def test_drive_needs_the_password(ubuntu_env):
-    url = ubuntu_env.urls["transfer"]
-    assert httpx.put(f"{url}/x.txt", content=b"x", headers={"PW": "wrong"}).status_code == 403
-    assert httpx.put(f"{url}/x.txt", content=b"x").status_code in (401, 403)
-    for _ in range(12):  # no ban after many failed logins (agents mistype)
-        httpx.get(f"{url}/?ls", headers={"PW": "wrong"})
-    assert httpx.get(f"{url}/?ls", headers={"PW": "agentPassword"}).status_code == 200
+def test_names_are_unique_per_lifecycle_of_one_run_and_worker(standin_platforms, lifecycle):
+    twins = [Lifecycle(lifecycle.run_id, "gw0") for _ in range(2)]
+    with ThreadPoolExecutor(2) as ex:
+        envs = list(ex.map(lambda lc: lc.boot(standin_platforms[:1]), twins))
+    names = [c.name for e in envs for c in e.containers.values()] + [e.network.name for e in envs]
+    assert len(set(names)) == len(names) == 6
+    for e in envs:
+        e.close()
+    assert leftovers(lifecycle.run_id) == []
 
 
-def test_ports_are_published_on_loopback_only(ubuntu_env):
+def test_the_real_ubuntu_device_on_loopback(ubuntu_env):
     for c in ubuntu_env.containers.values():
-        c.reload()
-        bindings = [b for bs in c.attrs["NetworkSettings"]["Ports"].values() if bs for b in bs]
-        assert bindings and all(b["HostIp"] == "127.0.0.1" for b in bindings), bindings
-        assert c.labels[LABEL_RUN] and c.labels["org.jarvis.worker"] == "test"
+        assert all(b["HostIp"] == "127.0.0.1" for b in bindings(c))
+    assert ubuntu_env.devices["ubuntu"].health().desktop
+    assert ubuntu_env.image_ids["ubuntu"].startswith("sha256:")
 
 
-def test_a_device_that_never_gets_ready_fails_with_its_logs(lifecycle):
-    def never(url: str, timeout: float) -> None:
-        time.sleep(timeout)
-        raise InfrastructureError(f"device at {url} not ready after {timeout} s")
-
-    register_backend(Backend(platform="never", image="transfer", port=5244, connect=lambda url: None,
-                             wait_ready=never, container_options={
-                                 "command": ["bash", "-c", "echo 'device says: cannot start'; sleep 60"]}))
-    lc = Lifecycle(lifecycle.run_id, "test", Limits(ready_timeout=2))
+def test_a_device_that_never_gets_ready_fails_with_its_logs(lifecycle, device_images):
+    register_backend(Backend(platform="never", image="transfer", port=5000, connect=lambda url: url,
+                             wait_ready=never_ready, container_options={
+                                 "command": ["sh", "-c", "echo 'device says: cannot start'; sleep 600"]}))
+    lc = Lifecycle(lifecycle.run_id, "test", Limits(ready_timeout=5))
     t0 = time.monotonic()
     with pytest.raises(InfrastructureError) as err:
         lc.boot(("never",))
-    assert time.monotonic() - t0 < 30
-    assert "not ready" in str(err.value) and "--- logs of" in str(err.value)
-    assert "device says: cannot start" in str(err.value)
-    assert leftovers(lifecycle.run_id) == []  # a failed boot removes what it made
+    elapsed = time.monotonic() - t0
+    print(f"never-ready device failed after {elapsed:.1f} s (timeout 5 s)")
+    assert elapsed < 20
+    msg = str(err.value)
+    assert "not ready after 5 s" in msg and "does not answer" in msg
+    assert "docker logs" in msg and "device says: cannot start" in msg
+    assert leftovers(lifecycle.run_id) == []  # a failed boot removes what it made, the drive and network too
 
 
-def test_pool_prewarm_and_close(lifecycle):
+@pytest.mark.parametrize("delay", ["0", "1.5"], ids=["exits-at-once", "exits-while-polled"])
+def test_a_device_that_exits_fails_at_once_with_its_logs(lifecycle, device_images, delay):
+    register_backend(Backend(platform="crashing", image="transfer", port=5000, connect=lambda url: url,
+                             wait_ready=never_ready, container_options={
+                                 "command": ["sh", "-c", f"sleep {delay}; echo 'Xvfb: fatal: no screen' >&2; exit 3"]}))
+    lc = Lifecycle(lifecycle.run_id, "test", Limits(ready_timeout=60))
+    t0 = time.monotonic()
+    with pytest.raises(InfrastructureError) as err:
+        lc.boot(("crashing",))
+    elapsed = time.monotonic() - t0
+    print(f"crashing device failed after {elapsed:.1f} s (timeout 60 s)")
+    assert elapsed < 20
+    assert "exited with code 3" in str(err.value) and "Xvfb: fatal: no screen" in str(err.value)
+    assert leftovers(lifecycle.run_id) == []
+
+
+def test_an_unknown_platform_creates_nothing(lifecycle):
+    with pytest.raises(InfrastructureError, match="no device backend for platform 'amiga'"):
+        lifecycle.boot(("amiga",))
+    assert leftovers(lifecycle.run_id) == []
+
+
+def test_pool_prewarm_is_faster_than_a_cold_boot_and_close_removes_all(lifecycle):
     pool = Pool(lifecycle)
     t0 = time.monotonic()
-    cold = lifecycle.boot(("ubuntu",))
+    cold = pool.acquire(("ubuntu",))  # nothing pre-warmed: boots now
     cold_s = time.monotonic() - t0
+    assert cold.devices["ubuntu"].health().desktop
+    pool.prewarm(("ubuntu",))  # while the "task" on `cold` runs
+    assert pool.wait_prewarmed(("ubuntu",), timeout=120)
     cold.close()
-    pool.prewarm(("ubuntu",))
-    time.sleep(cold_s + 1)
     t0 = time.monotonic()
-    env = pool.acquire(("ubuntu",))
+    warm = pool.acquire(("ubuntu",))
     warm_s = time.monotonic() - t0
-    print(f"cold boot {cold_s:.2f} s, acquire after pre-warm {warm_s * 1000:.1f} ms")
-    assert env.devices["ubuntu"].health().desktop
-    env.close()
-    pool.prewarm(("ubuntu",))  # never acquired: close must remove it
+    print(f"\ncold boot {cold_s:.2f} s; acquire after pre-warm {warm_s * 1000:.1f} ms")
+    assert warm.devices["ubuntu"].health().desktop and warm.transfer.list("/") == (["data"], [])
+    assert warm.network.name != cold.network.name
+    warm.close()
+    pool.prewarm(("ubuntu",))  # never acquired: close must remove it, even while it is still booting
     pool.close()
     assert leftovers(lifecycle.run_id) == []
+    pool.prewarm(("ubuntu",))  # a closed pool boots nothing more
+    assert not pool.wait_prewarmed(("ubuntu",), timeout=0) and leftovers(lifecycle.run_id) == []
+
+
+def test_a_failed_prewarm_is_retried_once_on_acquire(lifecycle, standin_platforms):
+    attempts = []
+
+    def flaky(url: str, timeout: float) -> None:
+        attempts.append(url)
+        if len(attempts) == 1:
+            raise ValueError("first boot breaks")
+
+    register_backend(Backend(platform="flaky", image="transfer", port=8000, connect=lambda url: url,
+                             wait_ready=flaky, container_options={"command": ["sleep", "600"]}))
+    with Pool(lifecycle) as pool:
+        pool.prewarm(("flaky",))
+        assert pool.wait_prewarmed(("flaky",), timeout=60)
+        env = pool.acquire(("flaky",))
+        assert len(attempts) == 2 and env.urls["flaky"] == attempts[1]
+        env.close()
+    assert leftovers(lifecycle.run_id) == []
+
+
+EXIT_WITHOUT_CLOSING = """
+import sys
+sys.path.insert(0, sys.argv[2])
+from conftest import STANDIN_PLATFORMS, register_standin_backends
+register_standin_backends()
+from jarvis_pytest.infra.lifecycle import Lifecycle
+from jarvis_pytest.infra.pool import Pool
+pool = Pool(Lifecycle(sys.argv[1], "gw7"))
+pool.prewarm(STANDIN_PLATFORMS)
+assert pool.wait_prewarmed(STANDIN_PLATFORMS, timeout=60)
+print("pre-warmed", flush=True)
+"""  # and exits without closing the pool: its atexit hook must remove the environment
+
+
+def test_the_pool_cleans_up_at_interpreter_exit(standin_platforms):
+    run_id = f"test-exit-{uuid.uuid4().hex[:6]}"
+    tests_dir = os.path.dirname(__file__)
+    try:
+        out = subprocess.run([sys.executable, "-c", EXIT_WITHOUT_CLOSING, run_id, tests_dir], capture_output=True,
+                             text=True, timeout=120)
+        assert out.stdout.strip() == "pre-warmed", out.stderr[-2000:]
+        assert leftovers(run_id) == []
+    finally:
+        cleanup(run_id)
 
 
 BOOT_AND_HANG = """
@@ -116,18 +204,28 @@ time.sleep(600)
 """
 
 
-def test_cleanup_after_the_run_is_killed(device_images):
+def test_cleanup_after_the_run_is_killed(standin_platforms, device_images):
     run_id = f"test-kill-{uuid.uuid4().hex[:6]}"
     proc = subprocess.Popen([sys.executable, "-c", BOOT_AND_HANG, run_id], stdout=subprocess.PIPE, text=True)
+    live = None
     try:
         assert proc.stdout.readline().strip() == "booted"
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(10)
-        assert len(leftovers(run_id)) == 3  # ubuntu, transfer, network: a kill leaves them
+        assert len(leftovers(run_id)) == 3  # ubuntu, transfer, network: a kill -9 leaves them
+        # another worker of the same run is still alive: cleaning orphans must spare its environment
+        live = Lifecycle(run_id, "gw1").boot(standin_platforms[:1])
+        assert cleanup(run_id, orphans_only=True) == {"containers": 2, "networks": 1, "volumes": 0}
+        assert leftovers(run_id) == sorted([*(c.name for c in live.containers.values()), live.network.name])
+        assert live.transfer.list("/") == (["data"], [])
+        # `jarvis cleanup --run` removes everything of the run, live or not
         out = subprocess.run([sys.executable, "-m", "jarvis_pytest.cli", "cleanup", "--run", run_id],
-                             capture_output=True, text=True, check=True).stdout
-        assert "2 containers, 1 networks" in out
+                             capture_output=True, text=True)
+        assert out.returncode == 0, out.stderr
+        assert "2 containers, 1 networks, 0 volumes removed" in out.stdout
         assert leftovers(run_id) == []
     finally:
         proc.kill()
+        if live is not None:
+            live.close()
         cleanup(run_id)

@@ -6,9 +6,11 @@ import json
 import time
 
 import httpx
+
 from jarvis_pytest.devices.actions import Action
 from jarvis_pytest.devices.base import ActionOutcome, CommandResult, Observation
-from jarvis_pytest.devices.protocol import ActionResult, Health, LaunchRequest, RunRequest, RunResponse, ScreenSize
+from jarvis_pytest.devices.protocol import (A11yTree, ActionResult, Health, LaunchRequest, RunRequest, RunResponse,
+                                            ScreenSize)
 from jarvis_pytest.errors import InfrastructureError
 
 
@@ -35,14 +37,18 @@ class DesktopDevice:
             raise InfrastructureError(f"{self.platform} device at {self.base_url} did not answer {method} {path}: "
                                       f"{exc.__class__.__name__}: {exc}") from exc
 
+    @staticmethod
+    def _error(resp: httpx.Response) -> str:
+        """The server's `{"error": ...}` message (or the raw body of an answer that is not the server's)."""
+        try:
+            return str(resp.json()["error"])
+        except (ValueError, KeyError, TypeError):
+            return resp.text[:500] or f"HTTP {resp.status_code}"
+
     def _ok(self, resp: httpx.Response) -> httpx.Response:
         if resp.status_code >= 400:
-            try:
-                msg = resp.json().get("error", resp.text)
-            except ValueError:
-                msg = resp.text
             raise InfrastructureError(f"{self.platform} device: {resp.request.method} {resp.request.url.path} "
-                                      f"failed ({resp.status_code}): {msg}")
+                                      f"failed ({resp.status_code}): {self._error(resp)}")
         return resp
 
     def health(self) -> Health:
@@ -51,9 +57,11 @@ class DesktopDevice:
     def screenshot(self) -> bytes:
         return self._ok(self._request("GET", "/screenshot")).content
 
-    def a11y_tree(self, max_nodes: int = 2000, timeout: float = 5.0) -> dict:
-        resp = self._request("GET", "/a11y", params={"max_nodes": max_nodes, "timeout": timeout}, timeout=timeout + 10)
-        return self._ok(resp).json()
+    def a11y_tree(self, max_nodes: int = 2000, timeout: float = 5.0, showing_only: bool = True) -> dict:
+        """`{"tree": {...}, "nodes": n, "truncated": bool, "elapsed_ms": t}` (see `server/a11y.py`)."""
+        params = {"max_nodes": max_nodes, "timeout": timeout, "all": int(not showing_only)}
+        resp = self._ok(self._request("GET", "/a11y", params=params, timeout=timeout + 10))
+        return A11yTree.model_validate_json(resp.content).model_dump()
 
     def observe(self, *, a11y: bool = False) -> Observation:
         png = self.screenshot()
@@ -68,9 +76,8 @@ class DesktopDevice:
         resp = self._request("POST", "/action", content=action.model_dump_json(),
                              headers={"Content-Type": "application/json"},
                              timeout=max(30.0, float(getattr(action, "seconds", 0)) + 30))
-        if 400 <= resp.status_code < 500:
-            return ActionOutcome(ok=False, error=resp.json().get("error", resp.text),
-                                 elapsed_ms=(time.perf_counter() - t0) * 1000)
+        if 400 <= resp.status_code < 500:  # the device refused the action: the agent's error, not ours
+            return ActionOutcome(ok=False, error=self._error(resp), elapsed_ms=(time.perf_counter() - t0) * 1000)
         result = ActionResult.model_validate(self._ok(resp).json())
         return ActionOutcome(ok=result.ok, error=result.error, elapsed_ms=result.elapsed_ms)
 
@@ -98,6 +105,12 @@ class DesktopDevice:
 
     def close(self) -> None:
         self.http.close()
+
+    def __enter__(self) -> "DesktopDevice":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 def wait_ready(base_url: str, timeout: float) -> None:

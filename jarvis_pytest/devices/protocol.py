@@ -26,6 +26,15 @@ class ActionResult(_Model):
     elapsed_ms: float = 0.0
 
 
+class A11yTree(_Model):
+    """The accessibility tree: nested `{"role", "name", "box", "states", "text"?, "children"?}` nodes."""
+
+    tree: dict | None
+    nodes: int
+    truncated: bool  # a node, depth or time limit cut the tree short
+    elapsed_ms: float = 0.0
+
+
 class RunRequest(_Model):
     command: str = Field(min_length=1)
     user: str | None = Field(default=None, description="`root` runs through sudo; default: the desktop user")

@@ -1,26 +1,92 @@
-"""Remove what a crashed or killed run left behind: containers, networks and volumes with our labels."""
+"""Remove what crashed or killed runs left behind: containers, networks and volumes with our labels.
+
+Three selections: one run (`run_id`, whether its processes live or not), every run (`everything`), or — the
+default of `jarvis cleanup` — orphans only: resources whose owning process (labels `org.jarvis.host` and
+`org.jarvis.pid`) is gone from this host. Resources without an owner label, or owned by another host, are never
+orphans (they may belong to a live run); remove them with `--run` or `--all`.
+"""
 
 from __future__ import annotations
 
-from jarvis_pytest.infra.lifecycle import LABEL_RUN
+import os
+import socket
+import time
+from pathlib import Path
+from typing import Any
+
+from jarvis_pytest.errors import InfrastructureError
+from jarvis_pytest.infra.containers import LABEL_HOST, LABEL_PID, LABEL_RUN
 
 
-def cleanup(run_id: str | None = None, everything: bool = False) -> dict[str, int]:
-    """Remove the resources of run `run_id`, or of every run when `everything`; returns counts."""
+def process_alive(pid: int) -> bool:
+    """Whether process `pid` of this host still runs (a zombie does not)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    stat = Path(f"/proc/{pid}/stat")
+    try:
+        return stat.read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return True
+
+
+def is_orphan(labels: dict[str, str]) -> bool:
+    """Whether the process that created a resource with these labels is provably gone."""
+    pid = labels.get(LABEL_PID, "")
+    if labels.get(LABEL_HOST) != socket.gethostname() or not pid.isdigit():
+        return False
+    return not process_alive(int(pid))
+
+
+def _remove(resource: Any, kind: str, problems: list[str]) -> bool:
+    import docker.errors
+
+    for attempt in range(5):
+        try:
+            if kind == "containers":
+                resource.remove(force=True, v=True)
+            elif kind == "volumes":
+                resource.remove(force=True)
+            else:
+                resource.remove()
+            return True
+        except docker.errors.NotFound:
+            return False
+        except docker.errors.APIError as exc:
+            if attempt == 4:
+                problems.append(f"{kind[:-1]} {resource.name}: {exc.explanation or exc}")
+            time.sleep(0.3)  # a removal in progress elsewhere, or a network whose containers are still going
+    return False
+
+
+def cleanup(run_id: str | None = None, everything: bool = False, orphans_only: bool | None = None) -> dict[str, int]:
+    """Remove the resources of run `run_id`, of every run (`everything`), or (neither) the orphans of every run.
+
+    `orphans_only=True` narrows a selection to orphans. Returns counts per kind; raises InfrastructureError
+    naming what could not be removed.
+    """
     from jarvis_pytest.infra.engine import client
 
-    if not run_id and not everything:
-        raise ValueError("give a run id or everything=True")
+    if orphans_only is None:
+        orphans_only = not run_id and not everything
     docker = client()
     label = f"{LABEL_RUN}={run_id}" if run_id else LABEL_RUN
     counts = {"containers": 0, "networks": 0, "volumes": 0}
-    for c in docker.containers.list(all=True, filters={"label": label}):
-        c.remove(force=True, v=True)
-        counts["containers"] += 1
-    for n in docker.networks.list(filters={"label": label}):
-        n.remove()
-        counts["networks"] += 1
-    for v in docker.volumes.list(filters={"label": label}):
-        v.remove(force=True)
-        counts["volumes"] += 1
+    problems: list[str] = []
+    listings = {"containers": lambda: docker.containers.list(all=True, filters={"label": label}),
+                "networks": lambda: docker.networks.list(filters={"label": label}),
+                "volumes": lambda: docker.volumes.list(filters={"label": label})}
+    for kind, listing in listings.items():  # containers first: a network in use cannot go
+        for resource in listing():
+            labels = (resource.attrs.get("Labels") if kind != "containers" else resource.labels) or {}
+            if orphans_only and not is_orphan(labels):
+                continue
+            if _remove(resource, kind, problems):
+                counts[kind] += 1
+    if problems:
+        raise InfrastructureError("could not remove " + "; ".join(problems) + " (is another run still using them? "
+                                  "`docker ps -a --filter label=org.jarvis.run` shows what is left)")
     return counts

@@ -1,4 +1,4 @@
-"""`jarvis engine ...` and `jarvis images ...` subcommands."""
+"""`jarvis engine`, `jarvis images`, `jarvis cleanup` and `jarvis bench devices` subcommands."""
 
 from __future__ import annotations
 
@@ -28,11 +28,9 @@ def _images_list(args) -> int:
 def _cleanup(args) -> int:
     from jarvis_pytest.infra.cleanup import cleanup
 
-    if not args.run and not args.all:
-        print("jarvis cleanup: give --run RUN_ID or --all", flush=True)
-        return 2
     counts = cleanup(args.run, everything=args.all)
-    print(", ".join(f"{v} {k}" for k, v in counts.items()) + " removed")
+    what = f"run {args.run}" if args.run else "every run" if args.all else "orphans (owner process gone)"
+    print(", ".join(f"{v} {k}" for k, v in counts.items()) + f" removed ({what})")
     return 0
 
 
@@ -43,9 +41,11 @@ def _bench_devices(args) -> int:
 
 
 def register(sub) -> None:
-    c = sub.add_parser("cleanup", help="remove containers, networks and volumes a crashed run left behind")
-    c.add_argument("--run", help="the run id (the name of its folder under reports/)")
-    c.add_argument("--all", action="store_true", help="everything any jarvis run left")
+    c = sub.add_parser("cleanup", help="remove containers, networks and volumes a crashed run left behind",
+                       description="Without options: remove what runs whose process is gone left behind (runs "
+                                   "still going are safe). --run: everything of one run. --all: everything.")
+    c.add_argument("--run", help="the run id (the name of its folder under reports/), live or not")
+    c.add_argument("--all", action="store_true", help="everything any jarvis run made, live runs included")
     c.set_defaults(func=_cleanup)
 
     p = sub.add_parser("bench", help="measure the harness")

@@ -1,10 +1,11 @@
 """Device images: an offline Debian base (debootstrap, then `docker import`) and the images under `fixtures/images/`.
 
 Each folder `fixtures/images/<name>/` holds a Dockerfile starting `ARG BASE` / `FROM ${BASE}` and an optional
-`image.json`: ``{"extras": {"<dest in context>": "<path in repo>"}, "wheels": ["pkg==1.2"]}``. Extras are copied
-into the build context (e.g. the control server's code); wheels are downloaded from PyPI on the host into
-`wheels/` of the context so the image build needs no index. An image is rebuilt only when the content hash of
-its context (plus its base image id) differs from the `org.jarvis.hash` label of the existing image.
+`image.json`: ``{"extras": {"<dest in context>": "<path in repo>"}, "wheels": ["pkg==1.2"], "python": "3.11"}``.
+Extras are copied into the build context (e.g. the control server's code); wheels are downloaded from PyPI on the
+host into `wheels/` of the context so the image build needs no index, for the image's Python version when
+`python` is given (else the host's). An image is rebuilt only when the content hash of its context (plus its base
+image id) differs from the `org.jarvis.hash` label of the existing image.
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ class ImageSpec:
     directory: Path
     extras: dict[str, str] = field(default_factory=dict)
     wheels: tuple[str, ...] = ()
+    python: str | None = None  # the Python version inside the image that the wheels are for
 
     def context_files(self) -> list[tuple[str, Path]]:
         """(path in context, file on disk), sorted, for hashing and copying."""
@@ -88,7 +90,7 @@ def discover(images_dir: Path = IMAGES_DIR) -> dict[str, ImageSpec]:
             if not (REPO_ROOT / src).exists():
                 raise ConfigError(f"extra {src!r} does not exist", path=meta_path, field=f"extras.{dest}",
                                   fix="point it at a file or folder of the repository")
-        specs[d.name] = ImageSpec(d.name, d, dict(extras), tuple(meta.get("wheels", ())))
+        specs[d.name] = ImageSpec(d.name, d, dict(extras), tuple(meta.get("wheels", ())), meta.get("python"))
     return specs
 
 
@@ -165,7 +167,8 @@ def _prepare_context(spec: ImageSpec, ctx: Path) -> None:
     wheels.mkdir(exist_ok=True)
     if spec.wheels:
         _progress(f"{spec.name}: downloading wheels {list(spec.wheels)}")
-        proc = subprocess.run([sys.executable, "-m", "pip", "download", "-q", "--only-binary", ":all:",
+        target = ["--python-version", spec.python] if spec.python else []
+        proc = subprocess.run([sys.executable, "-m", "pip", "download", "-q", "--only-binary", ":all:", *target,
                                "-d", str(wheels), *spec.wheels], capture_output=True, text=True)
         if proc.returncode != 0:
             raise InfrastructureError(f"pip download {spec.wheels} failed:\n{proc.stderr[-2000:]}")

@@ -12,10 +12,11 @@ from urllib.parse import parse_qs, urlsplit
 from pydantic import BaseModel, ValidationError
 
 from jarvis_pytest.devices import actions as A
-from jarvis_pytest.devices.protocol import ActionResult, Health, LaunchRequest, RunRequest, ScreenSize
+from jarvis_pytest.devices.protocol import A11yTree, ActionResult, Health, LaunchRequest, RunRequest, ScreenSize
 from jarvis_pytest.devices.server import system
 
 MAX_BODY = 512 * 1024 * 1024
+PLATFORM = "ubuntu"  # the platform this server runs on (`--platform`), named in refusals
 
 
 class HttpError(Exception):
@@ -88,13 +89,13 @@ def execute(action: A.Action) -> None:
     elif t in ("DONE", "FAIL"):
         pass
     elif t == "SYSTEM_BUTTON":
-        raise HttpError(400, "SYSTEM_BUTTON is an Android action; not supported on this desktop device")
+        raise HttpError(400, f"SYSTEM_BUTTON (an Android system button) is not supported on {PLATFORM}")
     elif t == "PYAUTOGUI":
         from jarvis_pytest.devices.server.pyautogui_compat import run_script
 
         try:
             run_script(action.script, kb)
-        except Exception as exc:  # the script's own error is the agent's to see, not a server failure
+        except (Exception, SystemExit) as exc:  # the script's own error is the agent's to see, not a server failure
             raise HttpError(400, f"PYAUTOGUI script failed: {exc.__class__.__name__}: {exc}") from None
     else:  # pragma: no cover - the union is closed
         raise HttpError(400, f"unknown action type {t}")
@@ -122,6 +123,8 @@ class Handler(BaseHTTPRequestHandler):
         self.send_response(status)
         self.send_header("Content-Type", ctype)
         self.send_header("Content-Length", str(len(body)))
+        if not self._body_read and self.headers.get("Content-Length", "0") != "0":
+            self.send_header("Connection", "close")  # the unread body would be taken for the next request
         self.end_headers()
         self.wfile.write(body)
 
@@ -131,9 +134,13 @@ class Handler(BaseHTTPRequestHandler):
         self._send(status, json.dumps(data).encode(), "application/json")
 
     def _body(self) -> bytes:
-        n = int(self.headers.get("Content-Length") or 0)
-        if n > MAX_BODY:
-            raise HttpError(413, f"body of {n} bytes is over the {MAX_BODY} limit")
+        try:
+            n = int(self.headers.get("Content-Length") or 0)
+        except ValueError:
+            raise HttpError(400, "Content-Length is not a number") from None
+        if not 0 <= n <= MAX_BODY:
+            raise HttpError(413, f"body of {n} bytes is not within the {MAX_BODY} byte limit")
+        self._body_read = True
         return self.rfile.read(n) if n else b""
 
     def _model(self, cls: type[BaseModel]):
@@ -154,6 +161,7 @@ class Handler(BaseHTTPRequestHandler):
     def _dispatch(self, method: str) -> None:
         route = urlsplit(self.path).path.rstrip("/") or "/"
         handler = ROUTES.get((method, route))
+        self._body_read = False
         try:
             if handler is None:
                 raise HttpError(404 if route not in {r for _, r in ROUTES} else 405, f"no route {method} {route}")
@@ -174,15 +182,18 @@ class Handler(BaseHTTPRequestHandler):
 
     # -- endpoints --------------------------------------------------------------------------------------------
     def health(self) -> None:
-        """Ready = the display answers, the desktop's processes run and the desktop is drawn (then it stays so:
-        an agent's own full-screen window must not make a device "unready")."""
+        """Ready = the display answers, the desktop's processes run, the window manager shows the desktop and the
+        panels, and the desktop is drawn. Then it stays so: an agent's own full-screen window must not make a
+        device "unready"."""
         if DEVICES.ready:
             self._json(200, Health(ok=True, desktop=True, details={"ready": True}))
             return
         details = system.running(system.DESKTOP_PROCESSES)
         try:
+            shown = DEVICES.screen.managed_classes() if all(details.values()) else set()
+            details.update({f"{cls} shown": cls in shown for cls in system.DESKTOP_WINDOWS})
             details["painted"] = all(details.values()) and DEVICES.screen.painted()
-        except Exception:
+        except Exception:  # the display is not up yet
             details["painted"] = False
         DEVICES.ready = all(details.values())
         self._json(200, Health(ok=True, desktop=DEVICES.ready, details=details))
@@ -200,10 +211,13 @@ class Handler(BaseHTTPRequestHandler):
         q = self._query()
         try:
             limits = dict(max_nodes=int(q.get("max_nodes", 2000)), max_depth=int(q.get("max_depth", 30)),
-                          timeout=float(q.get("timeout", 5)))
+                          timeout=float(q.get("timeout", 5)), showing_only=q.get("all", "0") in ("0", "false"))
+            if limits["max_nodes"] < 1 or limits["max_depth"] < 1 or not 0 < limits["timeout"] <= 60:
+                raise ValueError
         except ValueError:
-            raise HttpError(400, "max_nodes, max_depth must be integers and timeout a number") from None
-        self._json(200, tree(**limits))
+            raise HttpError(400, "max_nodes and max_depth must be integers ≥ 1 and timeout a number of seconds "
+                                 "in (0, 60]") from None
+        self._json(200, A11yTree(**tree(**limits)))
 
     def action(self) -> None:
         from jarvis_pytest.devices.server.xinput import InputError
@@ -247,7 +261,10 @@ class Handler(BaseHTTPRequestHandler):
         try:
             system.launch(req.app, req.args)
         except FileNotFoundError:
-            raise HttpError(404, f"no application {req.app!r} on this device") from None
+            raise HttpError(404, f"no application {req.app!r} on this device (give a command on its PATH, "
+                                 "e.g. mousepad, libreoffice, chromium, gimp, thunar)") from None
+        except PermissionError:
+            raise HttpError(400, f"{req.app!r} is not an executable") from None
         self._json(200, {"ok": True})
 
 
@@ -269,5 +286,7 @@ class Server(ThreadingHTTPServer):
     allow_reuse_address = True
 
 
-def serve(host: str, port: int) -> None:
+def serve(host: str, port: int, platform: str = "ubuntu") -> None:
+    global PLATFORM
+    PLATFORM = platform
     Server((host, port), Handler).serve_forever()

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
+import threading
 from pathlib import Path
 
 from jarvis_pytest.devices.protocol import RunResponse
 
-DESKTOP_PROCESSES = ("xfwm4", "xfdesktop", "xfce4-panel")
+DESKTOP_PROCESSES = ("xfwm4", "xfdesktop", "xfce4-panel")  # the desktop is up when these run ...
+DESKTOP_WINDOWS = ("xfdesktop", "xfce4-panel")              # ... and the window manager shows their windows
 
 
 def running(names: tuple[str, ...]) -> dict[str, bool]:
@@ -34,19 +37,45 @@ def _argv(command: str, user: str | None) -> list[str]:
 
 
 def run(command: str, user: str | None, timeout: float) -> RunResponse:
+    """Run `command` with bash; on timeout its whole process group is killed and the return code is 124.
+
+    Processes the command leaves in the background keep running only if they close its output (e.g.
+    `app >/dev/null 2>&1 &`); the answer comes when the command's output is closed.
+    """
+    argv = _argv(command, user)
+    proc = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            start_new_session=True)
     try:
-        proc = subprocess.run(_argv(command, user), capture_output=True, timeout=timeout, stdin=subprocess.DEVNULL)
-        return RunResponse(returncode=proc.returncode, stdout=proc.stdout.decode("utf-8", "replace"),
-                           stderr=proc.stderr.decode("utf-8", "replace"))
-    except subprocess.TimeoutExpired as exc:
-        out = (exc.stdout or b"").decode("utf-8", "replace")
-        return RunResponse(returncode=124, stdout=out, stderr=f"timed out after {timeout:g} s")
+        out, err = proc.communicate(timeout=timeout)
+        code = proc.returncode
+    except subprocess.TimeoutExpired:
+        _kill_group(proc.pid, through_sudo=argv[0] == "sudo")
+        try:
+            out, err = proc.communicate(timeout=5)
+        except subprocess.TimeoutExpired:  # a process that left the group still holds the output
+            proc.kill()
+            out, err = b"", b""
+        code, err = 124, err + f"timed out after {timeout:g} s".encode()
+    return RunResponse(returncode=code, stdout=out.decode("utf-8", "replace"), stderr=err.decode("utf-8", "replace"))
+
+
+def _kill_group(pgid: int, through_sudo: bool) -> None:
+    """Kill a command's process group; one run through sudo (no pty: it stays in the group) is killed as root."""
+    if through_sudo:
+        subprocess.run(["sudo", "-n", "kill", "-KILL", "--", f"-{pgid}"], capture_output=True)
+        return
+    try:
+        os.killpg(pgid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
 
 
 def launch(app: str, args: list[str]) -> None:
-    """Start an application detached from the server, in the desktop session."""
-    subprocess.Popen([app, *args], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                     stderr=subprocess.DEVNULL, start_new_session=True, cwd=os.path.expanduser("~"))
+    """Start an application detached from the server, in the desktop session; it is reaped when it ends (no
+    zombie left behind for `pgrep` to find)."""
+    proc = subprocess.Popen([app, *args], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True, cwd=os.path.expanduser("~"))
+    threading.Thread(target=proc.wait, name=f"reap {app}", daemon=True).start()
 
 
 def write_file(path: str, data: bytes) -> None:

@@ -1,18 +1,21 @@
 """Input through the XTest extension on one X connection: mouse, keys and exact Unicode typing.
 
 Characters that the keyboard map lacks (non-ASCII text) are typed by binding their keysym to a spare keycode
-first, so any text types exactly, `<>{}` included, without spawning a process per action.
+first (kept bound; the least recently used is rebound, never sooner than `REBIND_AFTER_S` after its last use), so
+any text types exactly, `<>{}` included, without spawning a process per action.
 """
 
 from __future__ import annotations
 
 import threading
 import time
+from collections import OrderedDict
 
 from Xlib import X, XK, display
 from Xlib.ext import xtest
 
 BUTTONS = {"left": 1, "middle": 2, "right": 3}
+REBIND_AFTER_S = 0.3  # a spare keycode is bound to another symbol no sooner than this after its last use
 KEY_ALIASES = {
     "ctrl": "Control_L", "control": "Control_L", "alt": "Alt_L", "shift": "Shift_L", "super": "Super_L",
     "win": "Super_L", "meta": "Super_L", "cmd": "Super_L", "enter": "Return", "return": "Return",
@@ -49,8 +52,9 @@ class Keyboard:
         self.width, self.height = geom.width, geom.height
         first, last = self.d.display.info.min_keycode, self.d.display.info.max_keycode
         mapping = self.d.get_keyboard_mapping(first, last - first + 1)
-        self.spare = [first + i for i, syms in enumerate(mapping) if not any(syms)][-4:]
-        self._next_spare = 0
+        # Keycodes without symbols, bound on demand to keysyms the layout lacks; least recently used rebound first.
+        self.spare: OrderedDict[int, tuple[int, float]] = OrderedDict(  # keycode → (bound keysym, last used)
+            (first + i, (0, 0.0)) for i, syms in enumerate(mapping) if not any(syms))
 
     # -- primitives -----------------------------------------------------------------------------------------
     def _check_point(self, x: int, y: int) -> None:
@@ -81,15 +85,23 @@ class Keyboard:
     def _keycode_for(self, sym: int) -> tuple[int, bool]:
         """A keycode producing `sym`, and whether Shift is needed; binds a spare keycode when none does."""
         for keycode, index in self.d.keysym_to_keycodes(sym):
-            if index in (0, 1):
+            if index in (0, 1) and keycode not in self.spare:
                 return keycode, index == 1
-        if not self.spare:
-            raise InputError(f"cannot type keysym {sym:#x}: no spare keycode")
-        keycode = self.spare[self._next_spare % len(self.spare)]
-        self._next_spare += 1
-        self.d.change_keyboard_mapping(keycode, [(sym, sym)])
-        self.d.sync()
-        time.sleep(0.02)  # let clients see the MappingNotify before the key event
+        for keycode, (bound, _) in self.spare.items():
+            if bound == sym:
+                break
+        else:
+            if not self.spare:
+                raise InputError(f"cannot type keysym {sym:#x}: the keyboard map has no spare keycode")
+            keycode, (bound, last_used) = next(iter(self.spare.items()))
+            if bound:
+                # Clients translate a key event with the map they fetch when they handle the MappingNotify before
+                # it: a client still behind on this keycode's last use would read the new symbol for it.
+                time.sleep(max(0.0, last_used + REBIND_AFTER_S - time.monotonic()))
+            self.d.change_keyboard_mapping(keycode, [(sym, sym)])
+            self.d.sync()
+        self.spare[keycode] = (sym, time.monotonic())
+        self.spare.move_to_end(keycode)
         return keycode, False
 
     def _tap_sym(self, sym: int) -> None:

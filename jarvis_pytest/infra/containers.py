@@ -1,0 +1,157 @@
+"""One container of a task: labelled, limited, published on 127.0.0.1 only, and waited for while it is watched.
+
+Every resource we create carries `labels()`: the run id, the worker, the role (`device`, `transfer`, `network`),
+the platform, and the host and process that own it (so `jarvis cleanup` can tell orphans from live runs).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import socket
+import time
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, Callable
+
+from jarvis_pytest.errors import InfrastructureError
+
+LABEL_RUN = "org.jarvis.run"
+LABEL_WORKER = "org.jarvis.worker"
+LABEL_ROLE = "org.jarvis.role"
+LABEL_PLATFORM = "org.jarvis.platform"
+LABEL_HOST = "org.jarvis.host"
+LABEL_PID = "org.jarvis.pid"
+
+READY_SLICE = 1.0  # seconds one readiness check may take before we look at the container again
+
+
+def labels(run_id: str, worker: str, role: str, platform: str = "") -> dict[str, str]:
+    """The labels of one resource of this process."""
+    return {LABEL_RUN: run_id, LABEL_WORKER: worker, LABEL_ROLE: role, LABEL_PLATFORM: platform,
+            LABEL_HOST: socket.gethostname(), LABEL_PID: str(os.getpid())}
+
+
+def docker_name(*parts: str) -> str:
+    """A valid container/network name from `parts` (other characters become `-`)."""
+    return re.sub(r"[^a-zA-Z0-9_.-]", "-", "-".join(p for p in parts if p)).strip("-.") or "jarvis"
+
+
+def start_container(docker: Any, image: str, name: str, *, network: Any, labels: dict[str, str], port: int,
+                    aliases: tuple[str, ...] = (), memory: str | None = None, cpus: float | None = None,
+                    options: dict[str, Any] | None = None) -> Any:
+    """Create and start a detached container on `network` with `port` published on a free 127.0.0.1 port."""
+    kwargs: dict[str, Any] = dict(
+        detach=True, name=name, labels=labels, network=network.name,
+        networking_config={network.name: docker.api.create_endpoint_config(aliases=list(aliases) or None)},
+        ports={f"{port}/tcp": ("127.0.0.1", None)},
+    )
+    if memory:
+        kwargs["mem_limit"] = memory
+    if cpus:
+        kwargs["nano_cpus"] = int(cpus * 1e9)
+    kwargs.update(options or {})
+    try:
+        container = docker.containers.create(image, **kwargs)
+    except Exception as exc:
+        raise InfrastructureError(f"cannot create container {name} from image {image}: {exc} "
+                                  "(build device images with `jarvis images build`)") from exc
+    try:
+        container.start()
+    except Exception as exc:
+        container.remove(force=True, v=True)
+        raise InfrastructureError(f"cannot start container {name} from image {image}: {exc}") from exc
+    return container
+
+
+def host_url(container: Any, port: int) -> str:
+    """`http://127.0.0.1:<published port>` of `port` inside the container."""
+    container.reload()
+    for b in container.attrs["NetworkSettings"]["Ports"].get(f"{port}/tcp") or []:
+        if b.get("HostIp") == "127.0.0.1":
+            return f"http://127.0.0.1:{b['HostPort']}"
+    raise _failure(container, exited(container) or f"container {container.name} has no port {port} published on "
+                                                   "127.0.0.1")
+
+
+def exited(container: Any) -> str | None:
+    """Why the (reloaded) container is no longer running, or None while it runs."""
+    state = container.attrs.get("State", {})
+    if state.get("Status") in ("exited", "dead"):
+        return (f"container {container.name} exited with code {state.get('ExitCode')} before it was ready "
+                f"({state.get('Error') or 'no error from Docker'})")
+    return None
+
+
+def logs(container: Any, lines: int = 60) -> str:
+    """The last `lines` lines of the container's output (never raises)."""
+    try:
+        return container.logs(tail=lines).decode("utf-8", "replace").rstrip() or "(no output)"
+    except Exception as exc:
+        return f"(no logs: {exc.__class__.__name__}: {exc})"
+
+
+def _failure(container: Any, message: str) -> InfrastructureError:
+    return InfrastructureError(f"{message}\n--- last lines of `docker logs {container.name}` ---\n{logs(container)}")
+
+
+def wait_until_ready(container: Any, check: Callable[[float], None], timeout: float, what: str) -> None:
+    """Call `check(seconds)` (raises InfrastructureError while not ready) until it returns, for at most `timeout`.
+
+    Between calls the container is looked at: if it exited, fail at once. Every failure carries its logs.
+    """
+    deadline = time.monotonic() + timeout
+    last = "not checked"
+    while True:
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:
+            raise _failure(container, f"{what} ({container.name}) not ready after {timeout:.0f} s: {last}")
+        try:
+            check(min(READY_SLICE, remaining))
+            return
+        except InfrastructureError as exc:
+            last = str(exc)
+        except Exception as exc:
+            raise _failure(container, f"{what} ({container.name}): readiness check failed: "
+                                      f"{exc.__class__.__name__}: {exc}") from exc
+        try:
+            container.reload()
+        except Exception as exc:
+            raise _failure(container, f"{what} ({container.name}) vanished while booting: {exc}") from None
+        if exited(container):
+            raise _failure(container, f"{what}: {exited(container)}")
+
+
+def remove_all(containers: list[Any], network: Any | None) -> list[str]:
+    """Remove containers (in parallel, with their anonymous volumes), then the network; what is already gone
+    is fine. Returns what could not be removed (empty when all went), so callers can say so instead of raising
+    in `finally` blocks.
+    """
+    import docker.errors
+
+    def remove(c: Any) -> str | None:
+        try:
+            c.remove(force=True, v=True)
+        except docker.errors.NotFound:
+            pass
+        except Exception as exc:
+            return f"container {c.name}: {exc}"
+        return None
+
+    try:
+        with ThreadPoolExecutor(max_workers=max(1, len(containers))) as pool:
+            results = list(pool.map(remove, containers))
+    except RuntimeError:  # at interpreter exit (atexit hooks) no new threads may be scheduled
+        results = [remove(c) for c in containers]
+    problems = [p for p in results if p]
+    if network is not None:
+        for attempt in range(5):  # a container removal racing ours may keep the network busy for a moment
+            try:
+                network.remove()
+                break
+            except docker.errors.NotFound:
+                break
+            except Exception as exc:
+                if attempt == 4:
+                    problems.append(f"network {network.name}: {exc}")
+                time.sleep(0.2)
+    return problems
