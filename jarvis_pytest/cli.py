@@ -11,6 +11,7 @@ from jarvis_pytest.errors import JarvisError
 # Modules that define `register(subparsers)`; each adds its subcommands.
 COMMAND_MODULES = [
     "jarvis_pytest.tasks.commands",
+    "jarvis_pytest.tasks.qc",
     "jarvis_pytest.infra.commands",
     "jarvis_pytest.dashboard.commands",
     "jarvis_pytest.agents.commands",

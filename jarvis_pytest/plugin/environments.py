@@ -10,5 +10,6 @@ def make_environments(options: JarvisOptions, *, run_id: str, worker: str):
     from jarvis_pytest.infra.lifecycle import Lifecycle, Limits
     from jarvis_pytest.infra.pool import Pool
 
-    lifecycle = Lifecycle(run_id, worker, Limits(memory=options.device_memory, cpus=options.device_cpus))
+    lifecycle = Lifecycle(run_id, worker, Limits(memory=options.device_memory, cpus=options.device_cpus),
+                          transfer=options.transfer)
     return Pool(lifecycle, enabled=options.prewarm)

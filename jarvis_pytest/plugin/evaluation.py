@@ -8,7 +8,7 @@ from jarvis_pytest.devices.base import Device
 from jarvis_pytest.errors import ConfigError, InfrastructureError
 from jarvis_pytest.evaluators import get_evaluator
 from jarvis_pytest.evaluators.state import FinalState
-from jarvis_pytest.results.model import EvaluatorVerdict, SubtaskVerdict
+from jarvis_pytest.results.model import EvaluatorVerdict, SubtaskVerdict, TaskResult
 
 
 def evaluate_subtasks(subtasks: list[dict[str, Any]], devices: dict[str, Device], transfer: Any) -> list[SubtaskVerdict]:
@@ -45,3 +45,16 @@ def failure_message(verdicts: list[SubtaskVerdict], end_reason: str, steps: int)
             if not e.passed:
                 lines.append(f"    {e.func}: {e.reason}")
     return "\n".join(lines)
+
+
+def qc_message(result: TaskResult) -> str:
+    """The quality-gate message: subtasks already solved before the oracle ran, and subtasks the oracle failed."""
+    lines = []
+    for v in result.qc_initial or []:
+        if v.passed:
+            lines.append(f"subtask {v.index} {v.template}: its evaluators pass on the untouched device "
+                         f"({'; '.join(f'{e.func}: {e.reason}' for e in v.evaluators)})")
+    if not all(s.passed for s in result.subtasks) or not result.subtasks:
+        lines.append("the oracle did not solve the task: "
+                     + failure_message(result.subtasks, result.end_reason, result.steps))
+    return "\n".join(lines) or "quality gate failed"

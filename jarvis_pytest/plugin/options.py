@@ -41,6 +41,11 @@ def addoption(parser: pytest.Parser) -> None:
     g.addoption("--dataset", action="append", default=None, metavar="FILE",
                 help="composed-task dataset file(s) (default: tasks/composed/*.json)")
     g.addoption("--instances", type=int, default=2, help="seeded instances per atomic template (default 2)")
+    g.addoption("--transfer", default=None, choices=("copyparty", "alist"),
+                help="the network drive's server: copyparty (offline default, built here) or alist (an AList/"
+                "OpenList image pulled from a registry, $JARVIS_ALIST_IMAGE); default $JARVIS_TRANSFER or copyparty")
+    g.addoption("--qc", action="store_true", help="quality gate of the tasks: evaluate right after set-up (every "
+                "subtask must fail), run the oracle, evaluate again (every subtask must pass); implies --agent oracle")
 
 
 @dataclass
@@ -57,6 +62,8 @@ class JarvisOptions:
     library: Path
     datasets: list[Path]
     instances: int
+    transfer: str | None = None
+    qc: bool = False
     endpoints: dict[str, dict[str, str | None]] = field(default_factory=dict)
 
 
@@ -83,17 +90,23 @@ def read_options(config: pytest.Config) -> JarvisOptions:
                         task_timeout=config.getoption("--task-timeout"))
     if limits.max_steps < 1:
         raise pytest.UsageError("--max-steps must be at least 1")
+    agent = config.getoption("--agent")
+    if config.getoption("--qc"):
+        if agent not in (None, "oracle"):
+            raise pytest.UsageError(f"--qc runs the tasks' oracle solutions; drop --agent {agent}")
+        agent = "oracle"
     results_dir = config.getoption("--results-dir")
     resume = config.getoption("--resume")
     if resume and not Path(resume).is_dir():
         raise pytest.UsageError(f"--resume {resume}: no such run directory")
     return JarvisOptions(
-        agent=config.getoption("--agent"), agent_options=pairs, limits=limits,
+        agent=agent, agent_options=pairs, limits=limits,
         results_dir=Path(results_dir) if results_dir else None, resume=Path(resume) if resume else None,
         device_memory=config.getoption("--device-memory"), device_cpus=config.getoption("--device-cpus"),
         keep_devices=config.getoption("--keep-devices"), prewarm=not config.getoption("--no-prewarm"),
         library=Path(config.getoption("--library")), datasets=[Path(p) for p in datasets],
-        instances=config.getoption("--instances"),
+        instances=config.getoption("--instances"), transfer=config.getoption("--transfer"),
+        qc=config.getoption("--qc"),
         endpoints={"planner": _endpoint(config, "planner"), "grounder": _endpoint(config, "grounder")},
     )
 

@@ -38,6 +38,7 @@ class RunContext:
     limits: LoopLimits = field(default_factory=LoopLimits)
     keep_devices: bool = False
     on_keep: Callable[[Any], None] | None = None
+    qc: bool = False  # evaluate once right after set-up as well (the quality gate, `jarvis qc`)
 
     @property
     def agent_config(self) -> dict[str, Any]:
@@ -47,6 +48,14 @@ class RunContext:
 def task_platforms(task: dict[str, Any]) -> tuple[str, ...]:
     """The device platforms a task needs, sorted."""
     return tuple(sorted(set(task.get("devices") or [s["platform"] for s in task["formatted_subtasks"]])))
+
+
+def _passed(result: TaskResult) -> bool:
+    """Every subtask passed; under the quality gate also every subtask failed on the freshly set-up devices."""
+    passed = bool(result.subtasks) and all(s.passed for s in result.subtasks)
+    if result.qc_initial is not None:
+        passed = passed and not any(s.passed for s in result.qc_initial)
+    return passed
 
 
 def run_task(task: dict[str, Any], ctx: RunContext) -> TaskResult:
@@ -66,6 +75,8 @@ def run_task(task: dict[str, Any], ctx: RunContext) -> TaskResult:
         result.image_ids = dict(env.image_ids)
         t_boot = time.monotonic()
         run_setup(subtasks, env.devices)
+        if ctx.qc:
+            result.qc_initial = evaluate_subtasks(subtasks, env.devices, env.transfer)
         t_setup = time.monotonic()
         transfer = {"url": f"http://{TRANSFER_ALIAS}:{TRANSFER_PORT}", "user": TRANSFER_USER,
                     "password": TRANSFER_PASSWORD, "folder": TRANSFER_FOLDER,
@@ -82,7 +93,7 @@ def run_task(task: dict[str, Any], ctx: RunContext) -> TaskResult:
         result.steps, result.end_reason, result.usage = outcome.steps, outcome.end_reason, outcome.usage
         result.subtasks = evaluate_subtasks(subtasks, env.devices, env.transfer)
         t_eval = time.monotonic()
-        result.status = "passed" if result.subtasks and all(s.passed for s in result.subtasks) else "failed"
+        result.status = "passed" if _passed(result) else "failed"
         result.durations = {"boot": t_boot - t_start, "setup": t_setup - t_boot, "agent": outcome.agent_seconds,
                             "loop": t_loop - t_setup, "evaluate": t_eval - t_loop, "total": t_eval - t_start}
         return result

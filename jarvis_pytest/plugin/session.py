@@ -16,7 +16,7 @@ import pytest
 
 from jarvis_pytest.errors import ConfigError, InfrastructureError, JarvisError
 from jarvis_pytest.plugin import cases
-from jarvis_pytest.plugin.evaluation import failure_message
+from jarvis_pytest.plugin.evaluation import failure_message, qc_message
 from jarvis_pytest.plugin.options import REPO_ROOT, JarvisOptions, new_run_id, read_options
 from jarvis_pytest.plugin.runner import RunContext, agent_key, run_task, task_platforms
 from jarvis_pytest.results.model import TaskResult
@@ -67,6 +67,7 @@ class JarvisSession:
                 run_dir=self.run_dir, agent=self.ensure_agent(),
                 environments=make_environments(self.options, run_id=self.run_dir.name, worker=self.worker),
                 limits=self.options.limits, keep_devices=self.options.keep_devices, on_keep=_print_kept,
+                qc=self.options.qc,
             )
         return self.context
 
@@ -206,8 +207,11 @@ def run_case(request: pytest.FixtureRequest, task: dict[str, Any]) -> TaskResult
 
 def assert_task_passed(result: TaskResult) -> None:
     """The test body of every task case: fail with each failed subtask and its evaluators' reasons."""
-    if result.status != "passed":
-        pytest.fail(failure_message(result.subtasks, result.end_reason, result.steps), pytrace=False)
+    if result.status == "passed":
+        return
+    if result.qc_initial is not None:
+        pytest.fail(qc_message(result), pytrace=False)
+    pytest.fail(failure_message(result.subtasks, result.end_reason, result.steps), pytrace=False)
 
 
 def collect_report(report: pytest.TestReport) -> None:

@@ -1,7 +1,7 @@
 """Run a subtask's setup steps (`config`) on its device before the agent starts.
 
-Steps are dicts with a `type`: `upload_file` (`path` on the device from `fixture` under `fixtures/files/` or a
-literal `content`), `command` (`command`, optional `user`), `launch` (`app`, `args`), `open` (`path`),
+Steps are dicts with a `type`: `upload_file` (`path` on the device from `fixture` under `fixtures/files/`, a
+literal `content`, or a registered file `generator` with `args`), `command` (`command`, optional `user`), `launch` (`app`, `args`), `open` (`path`),
 `sleep` (`seconds`). A failing step is an infrastructure error of the task (the task could not be set up),
 reported with the step and the device's answer.
 """
@@ -26,6 +26,10 @@ def _upload(device: Device, step: dict[str, Any]) -> None:
             raise ConfigError(f"fixture file {src} does not exist", field="config.upload_file.fixture",
                               fix="add the file under fixtures/files/ or fix the name")
         data = src.read_bytes()
+    elif step.get("generator"):
+        from jarvis_pytest.generators import generate
+
+        data = generate(step["generator"], step.get("args") or {})
     elif "content" in step:
         data = str(step["content"]).encode("utf-8")
     else:

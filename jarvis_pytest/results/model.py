@@ -69,6 +69,7 @@ class TaskResult(BaseModel):
     agent: dict[str, Any] = Field(default_factory=dict)  # agent name + configuration (no secrets)
     agent_key: str = ""  # hash of the agent configuration, for --resume
     subtasks: list[SubtaskVerdict] = Field(default_factory=list)
+    qc_initial: list[SubtaskVerdict] | None = None  # --qc: verdicts on the freshly set-up devices (must all fail)
     steps: int = 0
     end_reason: str = ""  # done | fail | max_steps | timeout | error
     error: str | None = None  # infrastructure error text when status == "error"

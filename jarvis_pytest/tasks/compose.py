@@ -170,7 +170,7 @@ def _candidates(library: Library, draft: Draft, built: Built, kind: str, n: int,
         if kind == "out":  # s is an available output: the new node takes it as an input
             t = built.subtasks[built.index[n]].output[slot].type
             for name in sorted(tpl.inputs):
-                if types.is_subtype(t, tpl.inputs[name].type) and (not cross or types.is_file(t)):
+                if tpl.inputs[name].feedable and types.is_subtype(t, tpl.inputs[name].type) and (not cross or types.is_file(t)):
                     out.append(_Candidate(tpl, name, "down", cross))
         else:  # s is an open input: the new node provides it from an output
             u = draft.nodes[n].template.inputs[slot].type
@@ -201,7 +201,7 @@ def _try_add(library: Library, draft: Draft, n: int, slot: str, cand: _Candidate
 def _open_slots(draft: Draft) -> list[tuple[str, int, str]]:
     """I_open ∪ O_avail: unfed input slots and unused output slots, as (kind, node, slot), sorted."""
     slots = [("in", n, s) for n, node in enumerate(draft.nodes) for s in sorted(node.template.inputs)
-             if s not in draft.fed(n)]
+             if s not in draft.fed(n) and node.template.inputs[s].feedable]
     return slots + [("out", n, s) for n, node in enumerate(draft.nodes) for s in sorted(node.template.outputs)
                     if s not in draft.used(n)]
 

@@ -39,17 +39,22 @@ class _Step(_Strict):
 
 
 class UploadFile(_Step):
-    """Put a file on the device: a fixture under fixtures/files/, or literal (templated) text content."""
+    """Put a file on the device: a fixture under fixtures/files/, literal (templated) text content, or the output
+    of a registered file generator (`jarvis_pytest/generators/`) called with templated `args`."""
 
     type: Literal["upload_file"] = "upload_file"
     path: str
     fixture: str | None = Field(default=None, description="a path under fixtures/files/")
     content: str | None = Field(default=None, description="literal file content (templated)")
+    generator: str | None = Field(default=None, description="a registered file generator, e.g. odt_document")
+    args: dict[str, Any] = Field(default_factory=dict, description="the generator's arguments (templated)")
 
     @model_validator(mode="after")
     def _one_source(self) -> "UploadFile":
-        if (self.fixture is None) == (self.content is None):
-            raise ValueError("upload_file needs exactly one of `fixture` and `content`")
+        if sum(x is not None for x in (self.fixture, self.content, self.generator)) != 1:
+            raise ValueError("upload_file needs exactly one of `fixture`, `content` and `generator`")
+        if self.args and self.generator is None:
+            raise ValueError("upload_file `args` belong to a `generator`")
         return self
 
 
@@ -133,6 +138,9 @@ class InputSlot(_Strict):
     choices: list[Scalar] | None = Field(default=None, min_length=1)
     range: tuple[int, int] | None = None
     pattern: str | None = None
+    feedable: bool = Field(
+        default=True, description="false when the task assumes the content its own setup gives this input (e.g. "
+        "the word to replace is in the file): composition then never feeds it from an upstream subtask")
 
     @model_validator(mode="after")
     def _domain(self) -> "InputSlot":

@@ -1,0 +1,103 @@
+"""`jarvis qc`: the paper's quality gate over the atomic task library.
+
+For every task instance the evaluator must fail on the freshly set-up device and pass after the oracle. The gate
+runs as a benchmark run (`pytest tasks/test_atomic.py --qc`, so it has the harness's parallelism, pre-warming,
+results and --resume), then prints one row per instance and exits non-zero on any violation or error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from jarvis_pytest.report.rollup import load_results
+from jarvis_pytest.results.model import SubtaskVerdict, TaskResult
+
+REPO_ROOT = Path(__file__).resolve().parents[2]
+
+
+def _state(verdicts: list[SubtaskVerdict] | None, want: bool) -> str:
+    if not verdicts:
+        return "-"
+    good = all(v.passed == want for v in verdicts)
+    return ("pass" if want else "fail") if good else ("FAIL" if want else "PASS")
+
+
+def qc_row(result: TaskResult) -> dict[str, str]:
+    """One line of the table: the task, its verdict on the fresh device (must be `fail`), after the oracle
+    (must be `pass`), the gate's outcome and the first reason when it is violated."""
+    before = _state(result.qc_initial, want=False)
+    after = _state(result.subtasks, want=True)
+    ok = result.status == "passed"
+    reason = ""
+    if result.status == "error":
+        reason = (result.error or "error").splitlines()[0]
+    elif not ok:
+        bad = [e for v in (result.qc_initial or []) if v.passed for e in v.evaluators]
+        bad_after = [e for v in result.subtasks if not v.passed for e in v.evaluators if not e.passed]
+        if bad:
+            reason = "passes untouched: " + bad[0].reason
+        elif bad_after:
+            reason = "oracle fails: " + bad_after[0].func + ": " + bad_after[0].reason
+    return {"task": result.task_id, "fresh": before, "oracle": after, "gate": "ok" if ok else
+            ("ERROR" if result.status == "error" else "VIOLATED"), "reason": reason[:160]}
+
+
+def render_table(rows: list[dict[str, str]]) -> str:
+    """A Markdown table of the gate's rows, then a one-line total."""
+    lines = ["| task | fresh device | after oracle | gate | reason |", "|---|---|---|---|---|"]
+    lines += [f"| {r['task']} | {r['fresh']} | {r['oracle']} | {r['gate']} | {r['reason']} |" for r in rows]
+    ok = sum(r["gate"] == "ok" for r in rows)
+    lines.append(f"\n{ok}/{len(rows)} instances pass the quality gate")
+    return "\n".join(lines)
+
+
+def pytest_argv(args: argparse.Namespace, run_dir: Path) -> list[str]:
+    """The benchmark run that performs the gate."""
+    argv = [sys.executable, "-m", "pytest", str(REPO_ROOT / "tasks" / "test_atomic.py"), "--qc",
+            "-p", "no:cacheprovider", "-q", "--instances", str(args.instances), "--library", str(args.library),
+            "--results-dir" if not args.resume else "--resume", str(run_dir)]
+    if args.platform:
+        argv += ["-m", args.platform]
+    if args.k:
+        argv += ["-k", args.k]
+    if args.n:
+        argv += ["-n", str(args.n)]
+    extra = list(args.pytest_args)
+    return argv + (extra[1:] if extra[:1] == ["--"] else extra)
+
+
+def run_qc(args: argparse.Namespace) -> int:
+    run_dir = Path(args.resume) if args.resume else (
+        REPO_ROOT / "reports" / ("qc-" + datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S")))
+    proc = subprocess.run(pytest_argv(args, run_dir), cwd=REPO_ROOT)
+    results, problems = load_results(run_dir)
+    if not results:
+        print(f"jarvis qc: no task ran (pytest exit {proc.returncode}); see the output above", file=sys.stderr)
+        return proc.returncode or 1
+    rows = [qc_row(r) for r in results]
+    table = render_table(rows)
+    (run_dir / "qc.md").write_text(table + "\n", encoding="utf-8")
+    print(table)
+    for p in problems:
+        print(p, file=sys.stderr)
+    print(f"results: {run_dir} (table in qc.md)")
+    violated = any(r["gate"] != "ok" for r in rows) or bool(problems)
+    return 1 if violated or proc.returncode not in (0, 5) else 0
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser("qc", help="quality gate: every task instance fails on its fresh device and passes after "
+                       "the oracle (prints a table; exit 1 on any violation)")
+    p.add_argument("--platform", default=None, help="only this platform's tasks (e.g. ubuntu)")
+    p.add_argument("-k", default=None, metavar="EXPR", help="only tasks matching this pytest -k expression")
+    p.add_argument("-n", default=None, metavar="N", help="parallel workers (pytest-xdist), e.g. 2 or auto")
+    p.add_argument("--instances", type=int, default=2, help="seeded instances per template (default 2)")
+    p.add_argument("--library", type=Path, default=REPO_ROOT / "tasks", help="template folder (default tasks/)")
+    p.add_argument("--resume", default=None, metavar="RUN_DIR", help="continue an interrupted gate run")
+    p.add_argument("pytest_args", nargs=argparse.REMAINDER, help="further pytest arguments after --")
+    p.set_defaults(func=run_qc)
