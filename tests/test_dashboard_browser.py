@@ -2,15 +2,21 @@
 live view follows a run as it writes steps, click markers sit where the action clicked, and damaged result files
 are shown as problems while the page keeps working.
 
-The finished run comes from `JARVIS_DASHBOARD_RUN` when set (a run directory written by a real benchmark run,
-e.g. `reports/<run id>`; it is copied, never modified), otherwise from `jarvis_pytest.dashboard.sample`.
+The finished run is a real benchmark run made here on real devices (`pytest tasks` with the `replay` agent clicking,
+typing and waiting on two atomic and one composed Ubuntu task), or the run directory named by `JARVIS_DASHBOARD_RUN`
+(e.g. `reports/<run id>`; copied, never modified). The live view is checked twice: against a real run in progress
+(steps arrive from the devices) and step by step against a run written with `jarvis_pytest.dashboard.sample`.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
+import subprocess
+import sys
+import time
 import uuid
 from pathlib import Path
 
@@ -26,6 +32,27 @@ CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
                  "--no-first-run", "--disable-sync"]
 POINT_ACTIONS = ("CLICK", "RIGHT_CLICK", "DOUBLE_CLICK", "MOVE_TO", "LONG_PRESS")
+REPO = Path(__file__).resolve().parents[1]
+REAL_TASKS = ["-k", "(write_note or replace_text) and seed0 or sw-0000", "--instances", "1"]
+CLICKS = [{"type": "CLICK", "x": 960, "y": 540}, {"type": "TYPING", "text": "dashboard check"},
+          {"type": "RIGHT_CLICK", "x": 300, "y": 200}, {"type": "HOTKEY", "keys": ["escape"]}]
+
+pytestmark = pytest.mark.containers  # the default finished run and the real live run boot devices
+
+
+def replay_file(path: Path, actions: list[dict]) -> Path:
+    """A trajectory for the `replay` agent: these actions on the Ubuntu device, in order."""
+    path.write_text("".join(json.dumps({"index": i, "platform": "ubuntu", "action": a,
+                                        "reasoning": f"dashboard test step {i}"}) + "\n"
+                            for i, a in enumerate(actions)))
+    return path
+
+
+def bench(run_dir: Path, trajectory: Path, *args: str) -> subprocess.Popen:
+    """A real benchmark run with the replay agent, writing into `run_dir`."""
+    cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-q", str(REPO / "tasks"), "--results-dir",
+           str(run_dir), "--agent", "replay", "--agent-option", f"file={trajectory}", *args]
+    return subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
 @pytest.fixture(scope="session")
@@ -39,13 +66,17 @@ def browser():
 
 
 @pytest.fixture(scope="module")
-def results_root(tmp_path_factory) -> Path:
+def results_root(tmp_path_factory, request) -> Path:
     root = tmp_path_factory.mktemp("results")
     real = os.environ.get("JARVIS_DASHBOARD_RUN")
     if real:
         shutil.copytree(real, root / Path(real).name, ignore_dangling_symlinks=True)
-    else:
-        sample.write_finished_run(root)
+        return root
+    request.getfixturevalue("device_images")
+    trajectory = replay_file(tmp_path_factory.mktemp("replay") / "traj.jsonl", CLICKS)
+    proc = bench(root / f"real-{uuid.uuid4().hex[:6]}", trajectory, *REAL_TASKS)
+    out, _ = proc.communicate(timeout=600)
+    assert proc.returncode in (0, 1), f"the benchmark run did not finish (exit {proc.returncode}):\n{out[-3000:]}"
     return root
 
 
@@ -148,6 +179,35 @@ def test_summary_tables_and_subtask_plot(page, base_url, finished_run, monkeypat
     assert abs((xs[1] - xs[0]) * 2 - (xs[2] - xs[1])) < 0.01  # subtask counts 1, 2, 4 on a linear axis
 
 
+def test_live_view_follows_a_real_run(page, base_url, results_root, tmp_path):
+    """A benchmark run on a real device, watched while it runs: its steps appear without a reload."""
+    run = f"live-real-{uuid.uuid4().hex[:6]}"
+    waits = [{"type": "WAIT", "seconds": 1.0}] * 6
+    proc = bench(results_root / run, replay_file(tmp_path / "traj.jsonl", [CLICKS[0], *waits]),
+                 "-k", "write_note and seed0", "--instances", "1")
+    try:
+        deadline = time.monotonic() + 120
+        while not list((results_root / run).glob("tasks/*/traj.jsonl")):
+            assert proc.poll() is None and time.monotonic() < deadline, "the run wrote no step"
+            time.sleep(0.2)
+        view(page, base_url, f"/run/{run}")
+        page.evaluate("window.__sameDocument = 7")
+        card = page.locator("[data-testid=live-task]")
+        expect(card.locator("[data-testid=live-action]")).to_contain_text("WAIT", timeout=30_000)
+        shown = [int(card.locator("[data-testid=live-steps]").inner_text().split()[0])]
+        expect(card.locator("[data-testid=live-steps]")).not_to_have_text(f"{shown[0]} steps", timeout=30_000)
+        expect(card.locator("[data-testid=live-shot]")).to_have_attribute("src", re.compile(r"step_\d+_ubuntu\.png$"))
+        out, _ = proc.communicate(timeout=180)
+        assert proc.returncode == 1, out[-3000:]  # the replayed clicks do not write the note: the task fails
+        expect(page.locator("[data-testid=count-failed]")).to_contain_text("1", timeout=30_000)
+        expect(page.locator("[data-testid=count-running]")).to_contain_text("0")
+        expect(page.locator("[data-testid=live-task]")).to_have_count(0)
+        assert page.evaluate("window.__sameDocument") == 7  # updated in place, never reloaded
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+
+
 def test_live_view_follows_a_running_task(page, base_url, results_root):
     run = f"live-{uuid.uuid4().hex[:6]}"
     run_dir = results_root / run
@@ -194,7 +254,9 @@ def _point_step(base_url: str, run: str) -> tuple[dict, dict]:
             a = s["action"] or {}
             if a.get("type") in POINT_ACTIONS and isinstance(a.get("x"), int) and s["platform"] in s["screenshots"]:
                 return task, s
-    pytest.skip(f"run {run} has no step with a click point")
+    if os.environ.get("JARVIS_DASHBOARD_RUN"):
+        pytest.skip(f"JARVIS_DASHBOARD_RUN {run} has no step with a click point")
+    pytest.fail(f"the benchmark run {run} recorded no step with a click point")
 
 
 def test_click_marker_sits_on_the_clicked_point(page, base_url, finished_run):
