@@ -295,3 +295,19 @@ def test_same_id_in_two_dataset_files(dataset_file):
     copy.write_text(dataset_file.read_text())
     with pytest.raises(ConfigError, match="also in"):
         load_tasks([dataset_file, copy])
+
+
+def test_an_unfeedable_input_is_never_fed_from_upstream(library):
+    """An input whose content the task assumes (`feedable: false`) keeps the file its own setup makes."""
+    fed = {(e.to[1], t.formatted_subtasks[e.to[0]].template)
+           for t in compose(library, seed=3, count=40, max_subtasks=3) for e in t.edges}
+    assert fed, "the library composes tasks with edges"
+    slot, template_id = sorted(fed)[0]
+    tpl = library.get(template_id)
+    locked = tpl.model_copy(update={"inputs": {**tpl.inputs, slot: tpl.inputs[slot].model_copy(
+        update={"feedable": False})}})
+    lib = Library.from_templates([locked if t.id == template_id else t for t in library.templates], library.types)
+    tasks = compose(lib, seed=3, count=40, max_subtasks=3)
+    assert tasks
+    assert not [e for t in tasks for e in t.edges
+                if e.to[1] == slot and t.formatted_subtasks[e.to[0]].template == template_id]

@@ -72,8 +72,8 @@ def pytest_argv(args: argparse.Namespace, run_dir: Path) -> list[str]:
 
 
 def run_qc(args: argparse.Namespace) -> int:
-    run_dir = Path(args.resume) if args.resume else (
-        REPO_ROOT / "reports" / ("qc-" + datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S")))
+    run_dir = Path(args.resume or args.results_dir or
+                   REPO_ROOT / "reports" / ("qc-" + datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S")))
     proc = subprocess.run(pytest_argv(args, run_dir), cwd=REPO_ROOT)
     results, problems = load_results(run_dir)
     if not results:
@@ -98,6 +98,7 @@ def register(sub: Any) -> None:
     p.add_argument("-n", default=None, metavar="N", help="parallel workers (pytest-xdist), e.g. 2 or auto")
     p.add_argument("--instances", type=int, default=2, help="seeded instances per template (default 2)")
     p.add_argument("--library", type=Path, default=REPO_ROOT / "tasks", help="template folder (default tasks/)")
+    p.add_argument("--results-dir", default=None, help="where to write the gate's results (default reports/qc-<time>)")
     p.add_argument("--resume", default=None, metavar="RUN_DIR", help="continue an interrupted gate run")
     p.add_argument("pytest_args", nargs=argparse.REMAINDER, help="further pytest arguments after --")
     p.set_defaults(func=run_qc)
