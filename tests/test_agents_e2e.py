@@ -23,7 +23,7 @@ TASK = "ubuntu-mousepad-write_note[seed0]"
 
 def bench(run_dir: Path, *args: str) -> subprocess.CompletedProcess:
     cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:xdist", str(REPO / "tasks"),
-           "--results-dir", str(run_dir), "--instances", "1", "-k", "write_note", *args]
+           "--results-dir", str(run_dir), "--instances", "1", "-k", "mousepad-write_note", *args]
     return subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=300)
 
 

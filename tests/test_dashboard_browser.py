@@ -33,7 +33,7 @@ CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networki
                  "--no-first-run", "--disable-sync"]
 POINT_ACTIONS = ("CLICK", "RIGHT_CLICK", "DOUBLE_CLICK", "MOVE_TO", "LONG_PRESS")
 REPO = Path(__file__).resolve().parents[1]
-REAL_TASKS = ["-k", "(write_note or replace_text) and seed0 or sw-0000", "--instances", "1"]
+REAL_TASKS = ["-k", "(mousepad-write_note or mousepad-replace_text) and seed0 or sw-0000", "--instances", "1"]
 CLICKS = [{"type": "CLICK", "x": 960, "y": 540}, {"type": "TYPING", "text": "dashboard check"},
           {"type": "RIGHT_CLICK", "x": 300, "y": 200}, {"type": "HOTKEY", "keys": ["escape"]}]
 
@@ -184,7 +184,7 @@ def test_live_view_follows_a_real_run(page, base_url, results_root, tmp_path):
     run = f"live-real-{uuid.uuid4().hex[:6]}"
     waits = [{"type": "WAIT", "seconds": 1.0}] * 6
     proc = bench(results_root / run, replay_file(tmp_path / "traj.jsonl", [CLICKS[0], *waits]),
-                 "-k", "write_note and seed0", "--instances", "1")
+                 "-k", "mousepad-write_note and seed0", "--instances", "1")
     try:
         deadline = time.monotonic() + 120
         while not list((results_root / run).glob("tasks/*/traj.jsonl")):

@@ -17,7 +17,8 @@ from jarvis_pytest.report.rollup import load_results, rollup
 
 pytestmark = pytest.mark.containers
 REPO = Path(__file__).resolve().parents[1]
-SELECT = ["-k", "seed0 or sw-0000 or sw-0001", "--instances", "1"]  # 4 atomic + 2 composed tasks
+ATOMIC = "mousepad-write_note or mousepad-replace_text or thunar-rename_file or terminal-brighten_image"
+SELECT = ["-k", f"({ATOMIC}) and seed0 or sw-0000 or sw-0001", "--instances", "1"]  # 4 atomic + 2 composed tasks
 
 
 def bench(run_dir: Path, *args: str, timeout: float = 600) -> subprocess.CompletedProcess:
@@ -146,7 +147,7 @@ def test_infrastructure_errors_are_errors_apart_and_rerun(device_images, tmp_pat
 def test_step_timeout_and_module_class_agent(device_images, tmp_path):
     env = dict(os.environ, PYTHONPATH=str(REPO / "tests" / "data" / "agents"))
     cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:xdist", str(REPO / "tasks"),
-           "--results-dir", str(tmp_path), "--instances", "1", "-k", "thunar", "--agent", "slow_agent:SlowAgent",
+           "--results-dir", str(tmp_path), "--instances", "1", "-k", "thunar-rename_file", "--agent", "slow_agent:SlowAgent",
            "--agent-option", "seconds=20", "--step-timeout", "1"]
     t0 = time.monotonic()
     proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=300, env=env)
@@ -158,7 +159,7 @@ def test_step_timeout_and_module_class_agent(device_images, tmp_path):
 
 def test_keep_devices_leaves_them_running_and_says_how_to_reach_them(device_images, tmp_path):
     cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:xdist", str(REPO / "tasks"),
-           "--results-dir", str(tmp_path), "--instances", "1", "-k", "thunar", "--agent", "noop", "--keep-devices"]
+           "--results-dir", str(tmp_path), "--instances", "1", "-k", "thunar-rename_file", "--agent", "noop", "--keep-devices"]
     proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=300)
     try:
         assert "docker exec -it jarvis-" in proc.stderr + proc.stdout
