@@ -44,6 +44,11 @@ def test_files_move_between_two_devices_and_the_host(two_devices):
     assert sh(env, a, f"printf 'made on a' > /tmp/a.txt && curl -s -o /dev/null -w '%{{http_code}}' -T /tmp/a.txt "
                       f"-H 'PW: agentPassword' {DRIVE}/data/a.txt") == (0, "201")
     assert sh(env, b, f"curl -fsS -H 'PW: agentPassword' {DRIVE}/data/a.txt") == (0, "made on a")
+    # a plain PUT onto an existing name replaces it (copyparty's default would keep both under a new name)
+    assert sh(env, a, f"printf 'made on a, again' > /tmp/a.txt && curl -s -o /dev/null -w '%{{http_code}}' "
+                      f"-T /tmp/a.txt -H 'PW: agentPassword' {DRIVE}/data/a.txt") == (0, "201")
+    assert sh(env, b, f"curl -fsS -H 'PW: agentPassword' {DRIVE}/data/a.txt") == (0, "made on a, again")
+    assert env.transfer.list("/data") == ([], ["a.txt"])
     # device b uploads with a multipart form (what a browser does); the host downloads it
     code, _ = sh(env, b, f"printf 'made on b' > /tmp/b.txt && curl -fsS -H 'PW: agentPassword' -F f=@/tmp/b.txt "
                          f"{DRIVE}/data/")
