@@ -60,3 +60,14 @@ def test_unreachable_endpoint(tmp_path):
 
 def test_bad_agent_option():
     assert_one_clear_error(run_bench("--agent", "noop", "--agent-option", "novalue"), "KEY=VALUE")
+
+
+def test_an_alist_drive_that_cannot_be_had_stops_the_run_at_start_up(device_images, tmp_path, monkeypatch):
+    """`--transfer alist` pulls its image once at start-up; here the registry is a closed port on 127.0.0.1."""
+    monkeypatch.setenv("JARVIS_ALIST_IMAGE", "127.0.0.1:9/jarvis-test/alist:none")
+    proc = run_bench("--agent", "oracle", "--transfer", "alist", "--results-dir", str(tmp_path))
+    assert_one_clear_error(proc, "--transfer alist", "127.0.0.1:9/jarvis-test/alist:none", "--transfer copyparty")
+
+
+def test_qc_runs_the_oracle_only(tmp_path):
+    assert_one_clear_error(run_bench("--qc", "--agent", "noop", "--results-dir", str(tmp_path)), "--qc", "noop")

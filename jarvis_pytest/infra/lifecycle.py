@@ -119,8 +119,11 @@ class Lifecycle:
         try:
             self.docker.images.pull(image)
         except Exception as exc:
-            raise InfrastructureError(f"cannot pull {image} for the {self.server.flavour} transfer drive: {exc}; "
-                                      "use the offline default (unset JARVIS_TRANSFER) or pull it by hand") from exc
+            first = str(exc).splitlines()[0][:300]
+            raise InfrastructureError(f"cannot pull {image} for the {self.server.flavour} transfer drive ({first}); "
+                                      "use the offline default (--transfer copyparty, or unset JARVIS_TRANSFER), "
+                                      "or `docker pull` it where a registry is reachable (then `docker save`/"
+                                      "`docker load` it here), or set JARVIS_ALIST_IMAGE to an image you have") from exc
 
     def _next_name(self) -> str:
         with self._lock:

@@ -95,6 +95,26 @@ class _XdistHooks:
         node.workerinput["jarvis_run_dir"] = str(self.run_dir)
 
 
+def _check_transfer_image(flavour: str) -> None:
+    """A drive image that must be pulled is had (or pulled) once, at start-up: one clear error, not one per task."""
+    from jarvis_pytest.infra.engine import client
+    from jarvis_pytest.infra.transfer_server import transfer_server
+
+    server = transfer_server(flavour)
+    try:
+        docker = client()
+        try:
+            docker.images.get(server.image)
+        except Exception:
+            docker.images.pull(server.image)
+    except Exception as exc:
+        first = str(exc).splitlines()[0][:300] if str(exc) else exc.__class__.__name__
+        raise pytest.UsageError(
+            f"--transfer {flavour}: the image {server.image} is not here and cannot be pulled ({first}); use "
+            "--transfer copyparty (offline default), or load the image (`docker load`) or set JARVIS_ALIST_IMAGE "
+            "to one you have") from None
+
+
 def configure(config: pytest.Config) -> None:
     try:
         options = read_options(config)
@@ -122,6 +142,8 @@ def configure(config: pytest.Config) -> None:
                 preflight()
             except JarvisError as exc:
                 raise pytest.UsageError(f"--agent {options.agent}: {exc}") from None
+        if options.transfer not in (None, "copyparty"):
+            _check_transfer_image(options.transfer)
         if config.pluginmanager.hasplugin("html") and not getattr(config.option, "htmlpath", None):
             config.option.htmlpath = str(run_dir / "report.html")
     from jarvis_pytest.plugin import html
