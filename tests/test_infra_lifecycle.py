@@ -88,18 +88,22 @@ def test_the_real_ubuntu_device_on_loopback(ubuntu_env):
     assert ubuntu_env.image_ids["ubuntu"].startswith("sha256:")
 
 
-def test_a_device_that_never_gets_ready_fails_with_its_logs(lifecycle, device_images):
-    register_backend(Backend(platform="never", image="transfer", port=5000, connect=lambda url: url,
-                             wait_ready=never_ready, container_options={
-                                 "command": ["sh", "-c", "echo 'device says: cannot start'; sleep 600"]}))
-    lc = Lifecycle(lifecycle.run_id, "test", Limits(ready_timeout=5))
+def failed_boot(lifecycle, platform: str, script: str, ready_timeout: float) -> str:
+    """Boot a stand-in device of the transfer image running `script`; the error it fails with (within 20 s)."""
+    register_backend(Backend(platform=platform, image="transfer", port=5000, connect=lambda url: url,
+                             wait_ready=never_ready, container_options={"command": ["sh", "-c", script]}))
+    lc = Lifecycle(lifecycle.run_id, "test", Limits(ready_timeout=ready_timeout))
     t0 = time.monotonic()
     with pytest.raises(InfrastructureError) as err:
-        lc.boot(("never",))
+        lc.boot((platform,))
     elapsed = time.monotonic() - t0
-    print(f"never-ready device failed after {elapsed:.1f} s (timeout 5 s)")
+    print(f"{platform} device failed after {elapsed:.1f} s (timeout {ready_timeout} s)")
     assert elapsed < 20
-    msg = str(err.value)
+    return str(err.value)
+
+
+def test_a_device_that_never_gets_ready_fails_with_its_logs(lifecycle, device_images):
+    msg = failed_boot(lifecycle, "never", "echo 'device says: cannot start'; sleep 600", ready_timeout=5)
     assert "not ready after 5 s" in msg and "does not answer" in msg
     assert "docker logs" in msg and "device says: cannot start" in msg
     assert leftovers(lifecycle.run_id) == []  # a failed boot removes what it made, the drive and network too
@@ -107,17 +111,9 @@ def test_a_device_that_never_gets_ready_fails_with_its_logs(lifecycle, device_im
 
 @pytest.mark.parametrize("delay", ["0", "1.5"], ids=["exits-at-once", "exits-while-polled"])
 def test_a_device_that_exits_fails_at_once_with_its_logs(lifecycle, device_images, delay):
-    register_backend(Backend(platform="crashing", image="transfer", port=5000, connect=lambda url: url,
-                             wait_ready=never_ready, container_options={
-                                 "command": ["sh", "-c", f"sleep {delay}; echo 'Xvfb: fatal: no screen' >&2; exit 3"]}))
-    lc = Lifecycle(lifecycle.run_id, "test", Limits(ready_timeout=60))
-    t0 = time.monotonic()
-    with pytest.raises(InfrastructureError) as err:
-        lc.boot(("crashing",))
-    elapsed = time.monotonic() - t0
-    print(f"crashing device failed after {elapsed:.1f} s (timeout 60 s)")
-    assert elapsed < 20
-    assert "exited with code 3" in str(err.value) and "Xvfb: fatal: no screen" in str(err.value)
+    msg = failed_boot(lifecycle, "crashing", f"sleep {delay}; echo 'Xvfb: fatal: no screen' >&2; exit 3",
+                      ready_timeout=60)
+    assert "exited with code 3" in msg and "Xvfb: fatal: no screen" in msg
     assert leftovers(lifecycle.run_id) == []
 
 

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from jarvis_pytest.errors import ConfigError
+from jarvis_pytest.naming import Registry
 
 
 @dataclass(frozen=True)
@@ -21,19 +22,8 @@ class Verdict:
 
 
 EvaluatorFunc = Callable[..., Verdict]
-EVALUATORS: dict[str, EvaluatorFunc] = {}
-
-
-def evaluator(name: str) -> Callable[[EvaluatorFunc], EvaluatorFunc]:
-    """Register `func` under `name` (names are unique)."""
-
-    def deco(func: EvaluatorFunc) -> EvaluatorFunc:
-        if name in EVALUATORS and EVALUATORS[name] is not func:
-            raise ValueError(f"evaluator {name!r} registered twice")
-        EVALUATORS[name] = func
-        return func
-
-    return deco
+EVALUATORS: Registry = Registry("evaluator")
+evaluator = EVALUATORS.register  # @evaluator("name") registers a check under a unique name
 
 
 def get_evaluator(name: str) -> EvaluatorFunc:

@@ -5,21 +5,11 @@ from __future__ import annotations
 from typing import Any, Callable
 
 from jarvis_pytest.errors import ConfigError
+from jarvis_pytest.naming import Registry
 
 GeneratorFunc = Callable[..., bytes]
-GENERATORS: dict[str, GeneratorFunc] = {}
-
-
-def generator(name: str) -> Callable[[GeneratorFunc], GeneratorFunc]:
-    """Register `func` under `name` (names are unique)."""
-
-    def deco(func: GeneratorFunc) -> GeneratorFunc:
-        if name in GENERATORS and GENERATORS[name] is not func:
-            raise ValueError(f"generator {name!r} registered twice")
-        GENERATORS[name] = func
-        return func
-
-    return deco
+GENERATORS: Registry = Registry("generator")
+generator = GENERATORS.register  # @generator("name") registers a file generator under a unique name
 
 
 def generate(name: str, args: dict[str, Any]) -> bytes:
