@@ -1,0 +1,87 @@
+"""The pure checks behind the Ubuntu library's file, settings and media evaluators: each passes on the state a
+solved task leaves and fails, saying what it expected and found, on the state before (no containers)."""
+
+from __future__ import annotations
+
+import io
+import zipfile
+
+from jarvis_pytest.evaluators.files import (check_ini_value, check_last_line, check_line_endings,
+                                            check_lines_filtered, check_trashinfo, check_zip_members)
+from jarvis_pytest.evaluators.media import check_mp3, check_playlist, check_snapshot_color, playlist_entries
+from jarvis_pytest.evaluators.settings import check_setting, check_wallpaper
+from jarvis_pytest.generators import generate
+from PIL import Image
+
+
+def test_setting_equals_or_matches():
+    assert check_setting("Adwaita-dark", "theme", pattern="(?i)-dark$").passed
+    bad = check_setting("Adwaita", "theme", pattern="(?i)-dark$")
+    assert not bad.passed and "'Adwaita'" in bad.reason
+    assert check_setting("false", "focus", expected="False").passed
+    assert not check_setting(None, "focus", expected="false").passed
+
+
+def test_wallpaper_needs_the_picture_on_workspace0_with_a_style():
+    base = "/backdrop/screen0/monitorscreen/workspace0"
+    shown = {f"{base}/last-image": "/home/user/Pictures/a.png", f"{base}/image-style": "5"}
+    assert check_wallpaper(shown, "/home/user/Pictures/a.png").passed
+    no_style = {**shown, f"{base}/image-style": "0"}
+    assert not check_wallpaper(no_style, "/home/user/Pictures/a.png").passed
+    other_ws = {f"{base.replace('workspace0', 'workspace1')}/last-image": "/home/user/Pictures/a.png"}
+    verdict = check_wallpaper(other_ws, "/home/user/Pictures/a.png")
+    assert not verdict.passed and "no wallpaper set" in verdict.reason
+
+
+def test_line_endings_last_line_and_filtered_lines():
+    assert check_line_endings(b"a\r\nb\r\nc\r\n", "crlf").passed
+    assert not check_line_endings(b"a\r\nb\nc\r\n", "crlf").passed
+    assert check_line_endings(b"a\nb\n", "lf").passed
+    assert check_last_line("bread\ntea\nmilk\n\n", "milk", ["bread", "tea"]).passed
+    lost = check_last_line("milk\n", "milk", ["bread"])
+    assert not lost.passed and "lost" in lost.reason
+    assert check_lines_filtered("keep a\nkeep b\n", "drop", ["keep a", "keep b"]).passed
+    assert not check_lines_filtered("keep a\nDROP me\n", "drop", ["keep a"]).passed
+    assert not check_lines_filtered("keep a\n", "drop", ["keep a", "keep b"]).passed
+
+
+def test_zip_members_trash_and_ini():
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as zf:
+        zf.writestr("thesis/part_one.txt", "x")
+        zf.writestr("thesis/cover.png", "y")
+    assert check_zip_members(buf.getvalue(), ["part_one.txt", "cover.png"]).passed
+    assert not check_zip_members(buf.getvalue(), ["part_two.txt"]).passed
+    assert not check_zip_members(b"plain text", ["a"]).passed
+    info = "[Trash Info]\nPath=/home/user/Downloads/old%20draft.txt\nDeletionDate=2026-01-01T00:00:00\n"
+    assert check_trashinfo({"old draft.txt.trashinfo": info}, "/home/user/Downloads/old draft.txt").passed
+    assert not check_trashinfo({}, "/home/user/Downloads/x.txt").passed
+    vlcrc = "[core]\n#snapshot-path=\nsnapshot-path=/home/user/Pictures/snaps/\n"
+    assert check_ini_value(vlcrc, "snapshot-path", "/home/user/Pictures/snaps").passed
+    assert not check_ini_value("[core]\n#snapshot-path=/x\n", "snapshot-path", "/x").passed
+
+
+def test_playlists_in_xspf_and_m3u():
+    xspf = (b'<?xml version="1.0"?><playlist xmlns="http://xspf.org/ns/0/" version="1"><trackList>'
+            b"<track><location>file:///home/user/Music/a%20b.wav</location></track>"
+            b"<track><location>file:///home/user/Music/c.wav</location></track></trackList></playlist>")
+    assert playlist_entries(xspf) == ["/home/user/Music/a b.wav", "/home/user/Music/c.wav"]
+    assert check_playlist(xspf, ["/home/user/Music/a b.wav", "/home/user/Music/c.wav"]).passed
+    assert not check_playlist(xspf, ["/home/user/Music/c.wav", "/home/user/Music/a b.wav"]).passed
+    m3u = b"#EXTM3U\n#EXTINF:3,a\n/home/user/Music/a.wav\nfile:///home/user/Music/c.wav\n"
+    assert check_playlist(m3u, ["a.wav", "c.wav"]).passed
+    assert not check_playlist(b"<playlist", ["a.wav"]).passed
+
+
+def test_mp3_and_snapshot_checks():
+    wav = generate("wav_tone", {"seconds": 1.5})
+    verdict = check_mp3(wav, 1.0)
+    assert not verdict.passed and "not an MP3" in verdict.reason
+    # three MPEG-1 layer III frames at 128 kbit/s, 44.1 kHz: 417 bytes each (no padding)
+    frame = b"\xff\xfb\x90\x00" + bytes(413)
+    assert check_mp3(frame * 40, 1.0).passed  # 40 × 1152 / 44100 ≈ 1.04 s
+    assert not check_mp3(frame * 10, 1.0).passed
+    png = io.BytesIO()
+    Image.new("RGB", (64, 48), "#c03020").save(png, "PNG")
+    assert check_snapshot_color(png.getvalue(), "#c03020").passed
+    assert not check_snapshot_color(png.getvalue(), "#2060c0").passed
