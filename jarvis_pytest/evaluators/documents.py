@@ -1,6 +1,338 @@
-"""Checks of documents state."""
+"""Checks of text documents (Writer .odt and .docx) and of exported PDFs, parsed on the host.
+
+`read_document` turns either format into the same plain model — paragraphs in order with their text, style,
+bold-ness, list membership and heading level, and the tables with their cell texts — with odfpy (ODF) and
+python-docx (OOXML), so each check is written once for both. PDFs are read with pypdf.
+"""
 
 from __future__ import annotations
 
-from jarvis_pytest.evaluators.registry import Verdict, evaluator  # noqa: F401
-from jarvis_pytest.evaluators.state import FinalState  # noqa: F401
+import io
+import re
+import zipfile
+from dataclasses import dataclass, field
+
+from jarvis_pytest.evaluators.registry import Verdict, evaluator
+from jarvis_pytest.evaluators.state import FinalState
+
+ODT_MIME = "application/vnd.oasis.opendocument.text"
+
+
+class NotADocument(ValueError):
+    """The bytes are no .odt or .docx document."""
+
+
+@dataclass
+class Paragraph:
+    text: str
+    style: str = ""
+    bold: bool = False
+    listed: bool = False
+    heading: int | None = None
+
+
+@dataclass
+class Document:
+    kind: str  # "odt" or "docx"
+    paragraphs: list[Paragraph] = field(default_factory=list)
+    tables: list[list[list[str]]] = field(default_factory=list)  # table → rows → cell texts
+
+    @property
+    def text(self) -> str:
+        cells = [c for t in self.tables for row in t for c in row]
+        return "\n".join([p.text for p in self.paragraphs] + cells)
+
+    def find(self, text: str) -> Paragraph | None:
+        """The first paragraph whose text is `text` (whitespace-normalised)."""
+        want = norm(text)
+        return next((p for p in self.paragraphs if norm(p.text) == want), None)
+
+
+def norm(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def document_kind(data: bytes) -> str:
+    """"odt" or "docx" by the package's content (not its file name); NotADocument otherwise."""
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as zf:
+            names = set(zf.namelist())
+            if "mimetype" in names and zf.read("mimetype").decode(errors="replace").strip() == ODT_MIME:
+                return "odt"
+            if "word/document.xml" in names:
+                return "docx"
+            kind = zf.read("mimetype").decode(errors="replace").strip() if "mimetype" in names else "no mimetype"
+    except zipfile.BadZipFile:
+        raise NotADocument("not a document package (no zip)") from None
+    raise NotADocument(f"not a text document ({kind})")
+
+
+def read_document(data: bytes) -> Document:
+    """Parse .odt or .docx bytes into a `Document`; NotADocument when they are neither."""
+    kind = document_kind(data)
+    return _read_odt(data) if kind == "odt" else _read_docx(data)
+
+
+# -- ODF (odfpy) ---------------------------------------------------------------------------------------------
+def _read_odt(data: bytes) -> Document:
+    from odf.namespaces import TABLENS, TEXTNS
+    from odf import teletype
+    from odf.opendocument import load
+    from odf.table import TableRow
+
+    odf = load(io.BytesIO(data))
+    styles: dict[str, object] = {}
+    for container in (odf.styles, odf.automaticstyles):
+        for el in container.childNodes:
+            if el.qname[1] == "style" and el.getAttribute("name"):
+                styles[el.getAttribute("name")] = el
+
+    def weight_bold(name: str | None, depth: int = 0) -> bool | None:
+        el = styles.get(name or "")
+        if el is None or depth > 10:
+            return None
+        for child in el.childNodes:
+            if child.qname[1] == "text-properties" and child.getAttribute("fontweight"):
+                return child.getAttribute("fontweight") in ("bold", "700", "800", "900")
+        return weight_bold(el.getAttribute("parentstylename"), depth + 1)
+
+    def pieces(el, bold: bool) -> list[tuple[str, bool]]:
+        out = []
+        for node in el.childNodes:
+            if node.nodeType == node.TEXT_NODE:
+                out.append((str(node.data), bold))
+            elif node.qname == (TEXTNS, "span"):
+                own = weight_bold(node.getAttribute("stylename"))
+                out += pieces(node, bold if own is None else own)
+            elif node.qname in ((TEXTNS, "s"), (TEXTNS, "tab"), (TEXTNS, "line-break")):
+                out.append((" ", bold))
+            else:
+                out += pieces(node, bold)
+        return out
+
+    doc = Document("odt")
+
+    def walk(el, listed: bool) -> None:
+        for node in el.childNodes:
+            if node.nodeType != node.ELEMENT_NODE:
+                continue
+            if node.qname in ((TEXTNS, "p"), (TEXTNS, "h")):
+                style = node.getAttribute("stylename") or ""
+                base = bool(weight_bold(style))
+                parts = [(t, b) for t, b in pieces(node, base) if t.strip()]
+                level = node.getAttribute("outlinelevel") if node.qname[1] == "h" else None
+                if level is None and re.match(r"Heading_20_(\d)", style):
+                    level = re.match(r"Heading_20_(\d)", style).group(1)
+                doc.paragraphs.append(Paragraph(teletype.extractText(node), style,
+                                                bool(parts) and all(b for _, b in parts), listed,
+                                                int(level) if level else None))
+            elif node.qname == (TABLENS, "table"):
+                rows = []
+                for row in node.getElementsByType(TableRow):
+                    rows.append([norm(teletype.extractText(c)) for c in row.childNodes
+                                 if c.qname == (TABLENS, "table-cell")])
+                doc.tables.append(rows)
+            else:
+                walk(node, listed or node.qname == (TEXTNS, "list"))
+
+    walk(odf.text, False)
+    return doc
+
+
+# -- OOXML (python-docx) -------------------------------------------------------------------------------------
+def _read_docx(data: bytes) -> Document:
+    import docx
+    from docx.oxml.ns import qn
+
+    d = docx.Document(io.BytesIO(data))
+
+    def style_chain(style):
+        while style is not None:
+            yield style
+            style = style.base_style
+
+    def style_bold(style) -> bool:
+        return next((bool(s.font.bold) for s in style_chain(style) if s.font.bold is not None), False)
+
+    def style_listed(style) -> bool:
+        for s in style_chain(style):
+            ppr = s.element.find(qn("w:pPr"))
+            if ppr is not None and ppr.find(qn("w:numPr")) is not None:
+                return True
+        return False
+
+    doc = Document("docx")
+    for p in d.paragraphs:
+        base = style_bold(p.style) if p.style is not None else False
+        runs = [(r.text, base if r.bold is None else r.bold) for r in p.runs if r.text.strip()]
+        ppr = p._p.pPr
+        listed = (ppr is not None and ppr.numPr is not None) or (p.style is not None and style_listed(p.style))
+        name = p.style.name if p.style is not None else ""
+        m = re.match(r"Heading (\d)", name)
+        doc.paragraphs.append(Paragraph(p.text, name, bool(runs) and all(b for _, b in runs), listed,
+                                        int(m.group(1)) if m else None))
+    for t in d.tables:
+        doc.tables.append([[norm(c.text) for c in row.cells] for row in t.rows])
+    return doc
+
+
+def _with_document(state: FinalState, path: str, platform: str | None, want: str, check) -> Verdict:
+    data = state.pull(path, platform)
+    if data is None:
+        return Verdict.check(False, want, f"no file at {path}")
+    try:
+        doc = read_document(data)
+    except (NotADocument, Exception) as exc:  # a corrupt package is a finding, not a crash
+        return Verdict.check(False, want, f"{path} unreadable: {exc}")
+    return check(doc)
+
+
+# -- checks --------------------------------------------------------------------------------------------------
+def check_lines_listed(doc: Document, lines: list[str]) -> Verdict:
+    """Every line of `lines` is a paragraph of the document that is an item of a (bulleted or numbered) list."""
+    missing = [line for line in lines if doc.find(line) is None]
+    unlisted = [line for line in lines if doc.find(line) is not None and not doc.find(line).listed]
+    found = (f"missing {missing!r}" if missing else "") + (f" not in a list: {unlisted!r}" if unlisted else "")
+    return Verdict.check(not missing and not unlisted, f"all {len(lines)} lines as list items",
+                         found.strip() or "all listed")
+
+
+@evaluator("document_lines_listed")
+def document_lines_listed(state: FinalState, path: str, lines: list[str], platform: str | None = None) -> Verdict:
+    return _with_document(state, path, platform, f"{path} with its lines in a list",
+                          lambda doc: check_lines_listed(doc, lines))
+
+
+def check_paragraph_bold(doc: Document, text: str) -> Verdict:
+    para = doc.find(text)
+    if para is None:
+        return Verdict.check(False, f"the paragraph {text!r} in bold", "no such paragraph")
+    return Verdict.check(para.bold, f"the paragraph {text!r} in bold",
+                         "bold" if para.bold else f"not bold (style {para.style or 'default'})")
+
+
+@evaluator("document_paragraph_bold")
+def document_paragraph_bold(state: FinalState, path: str, text: str, platform: str | None = None) -> Verdict:
+    return _with_document(state, path, platform, f"{text!r} in bold", lambda doc: check_paragraph_bold(doc, text))
+
+
+def check_document_text(doc: Document, contains: list[str], absent: list[str]) -> Verdict:
+    body = norm(doc.text)
+    lacking = [t for t in contains if norm(t) not in body]
+    present = [t for t in absent if norm(t) in body]
+    want = " and ".join(x for x in (f"text with {contains!r}" if contains else "",
+                                    f"without {absent!r}" if absent else "") if x)
+    found = "; ".join(x for x in (f"lacking {lacking!r}" if lacking else "",
+                                  f"still has {present!r}" if present else "") if x)
+    return Verdict.check(not lacking and not present, want, found or f"it ({len(body)} characters)")
+
+
+@evaluator("document_text_has")
+def document_text_has(state: FinalState, path: str, contains: list[str] | None = None,
+                      absent: list[str] | None = None, kind: str | None = None,
+                      platform: str | None = None) -> Verdict:
+    """The document (.odt/.docx, of `kind` when given) contains every text of `contains` and none of `absent`."""
+    def check(doc: Document) -> Verdict:
+        if kind and doc.kind != kind:
+            return Verdict.check(False, f"a .{kind} document", f"a .{doc.kind} document")
+        return check_document_text(doc, contains or [], absent or [])
+    return _with_document(state, path, platform, f"{path} with the right text", check)
+
+
+def check_table(doc: Document, rows: int, cols: int, header: list[str] | None = None) -> Verdict:
+    """The document has a table of `rows` × `cols` whose first row reads `header` (when given)."""
+    shapes = [f"{len(t)}×{max((len(r) for r in t), default=0)}" for t in doc.tables]
+    for t in doc.tables:
+        if len(t) == int(rows) and all(len(r) == int(cols) for r in t):
+            if header is None or [norm(h) for h in header] == t[0]:
+                return Verdict.check(True, f"a {rows}×{cols} table", "it")
+            return Verdict.check(False, f"a {rows}×{cols} table headed {header!r}", f"headed {t[0]!r}")
+    return Verdict.check(False, f"a {rows}×{cols} table", f"tables {shapes or 'none'}")
+
+
+@evaluator("document_has_table")
+def document_has_table(state: FinalState, path: str, rows: int, cols: int, header: list[str] | None = None,
+                       platform: str | None = None) -> Verdict:
+    return _with_document(state, path, platform, f"a {rows}×{cols} table",
+                          lambda doc: check_table(doc, int(rows), int(cols), header))
+
+
+def check_heading(doc: Document, text: str, level: int) -> Verdict:
+    para = doc.find(text)
+    if para is None:
+        return Verdict.check(False, f"{text!r} as a level-{level} heading", "no such paragraph")
+    return Verdict.check(para.heading == int(level), f"{text!r} as a level-{level} heading",
+                         f"style {para.style or 'default'} (heading level {para.heading})")
+
+
+@evaluator("document_heading_is")
+def document_heading_is(state: FinalState, path: str, text: str, level: int = 1,
+                        platform: str | None = None) -> Verdict:
+    return _with_document(state, path, platform, f"{text!r} as a heading", lambda doc: check_heading(doc, text, level))
+
+
+def check_pdf_text(data: bytes, contains: list[str], pages: int | None = None) -> Verdict:
+    """`data` is a PDF whose extracted text has every text of `contains` (and `pages` pages, when given)."""
+    from pypdf import PdfReader
+    from pypdf.errors import PdfReadError
+
+    want = f"a PDF with {contains!r}" + (f" on {pages} pages" if pages else "")
+    if not data.startswith(b"%PDF"):
+        return Verdict.check(False, want, f"no PDF (starts {data[:8]!r})")
+    try:
+        reader = PdfReader(io.BytesIO(data))
+        text = norm(" ".join(page.extract_text() or "" for page in reader.pages))
+    except (PdfReadError, Exception) as exc:
+        return Verdict.check(False, want, f"an unreadable PDF ({exc})")
+    lacking = [t for t in contains if norm(t) not in text]
+    wrong_pages = pages is not None and len(reader.pages) != int(pages)
+    found = f"{len(reader.pages)} page(s)" + (f", lacking {lacking!r}" if lacking else "")
+    return Verdict.check(not lacking and not wrong_pages, want, found)
+
+
+@evaluator("pdf_has_text")
+def pdf_has_text(state: FinalState, path: str, contains: list[str], pages: int | None = None,
+                 platform: str | None = None) -> Verdict:
+    data = state.pull(path, platform)
+    if data is None:
+        return Verdict.check(False, f"a PDF at {path}", "no file")
+    return check_pdf_text(data, contains, pages)
+
+
+def _source_lines(state: FinalState, reference: str, platform: str | None) -> list[str] | Verdict:
+    data = state.pull(reference, platform)
+    if data is None:
+        return Verdict.check(False, f"the text of {reference}", "no source document")
+    try:
+        return [norm(p.text) for p in read_document(data).paragraphs if norm(p.text)]
+    except Exception as exc:
+        return Verdict.check(False, f"the text of {reference}", f"an unreadable source ({exc})")
+
+
+@evaluator("document_same_text")
+def document_same_text(state: FinalState, path: str, reference: str, kind: str | None = None,
+                       platform: str | None = None) -> Verdict:
+    """`path` is a document (of `kind`, when given) with the same non-empty paragraphs as `reference`."""
+    source = _source_lines(state, reference, platform)
+    if isinstance(source, Verdict):
+        return source
+
+    def check(doc: Document) -> Verdict:
+        if kind and doc.kind != kind:
+            return Verdict.check(False, f"a .{kind} document", f"a .{doc.kind} document")
+        got = [norm(p.text) for p in doc.paragraphs if norm(p.text)]
+        return Verdict.check(got == source, f"the {len(source)} paragraphs of {reference}",
+                             f"{len(got)} paragraphs" + ("" if got == source else f", first {got[:2]!r}"))
+    return _with_document(state, path, platform, f"a copy of {reference}", check)
+
+
+@evaluator("pdf_matches_document")
+def pdf_matches_document(state: FinalState, path: str, document: str, platform: str | None = None) -> Verdict:
+    """`path` is a PDF showing the text of every paragraph of `document` (an .odt/.docx)."""
+    source = _source_lines(state, document, platform)
+    if isinstance(source, Verdict):
+        return source
+    data = state.pull(path, platform)
+    if data is None:
+        return Verdict.check(False, f"a PDF at {path}", "no file")
+    return check_pdf_text(data, source)

@@ -1,6 +1,271 @@
-"""Checks of spreadsheets state."""
+"""Checks of spreadsheets (.xlsx with openpyxl, .ods with odfpy, .csv with the csv module), read on the host.
+
+`read_workbook` turns each format into {sheet name: rows of cell values}, with numbers as floats and text
+stripped; formulas are read through the values LibreOffice caches in the file, so a total written as `=SUM(...)`
+and one typed in are checked alike.
+"""
 
 from __future__ import annotations
 
-from jarvis_pytest.evaluators.registry import Verdict, evaluator  # noqa: F401
-from jarvis_pytest.evaluators.state import FinalState  # noqa: F401
+import csv
+import io
+import re
+import zipfile
+
+from jarvis_pytest.evaluators.registry import Verdict, evaluator
+from jarvis_pytest.evaluators.state import FinalState
+
+ODS_MIME = "application/vnd.oasis.opendocument.spreadsheet"
+Sheets = dict[str, list[list[object]]]
+
+
+class NotASpreadsheet(ValueError):
+    """The bytes are no spreadsheet of the expected kind."""
+
+
+def cell_value(value: object) -> object:
+    """Numbers as floats (numeric text too), text stripped, empty as None."""
+    if value is None:
+        return None
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, (int, float)):
+        return float(value)
+    text = str(value).strip()
+    if not text:
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+def _trim(rows: list[list[object]]) -> list[list[object]]:
+    rows = [list(r) for r in rows]
+    for r in rows:
+        while r and r[-1] is None:
+            r.pop()
+    while rows and not rows[-1]:
+        rows.pop()
+    return rows
+
+
+def spreadsheet_kind(data: bytes) -> str:
+    """"xlsx", "ods" or "csv" by content."""
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as zf:
+            names = set(zf.namelist())
+            if "xl/workbook.xml" in names:
+                return "xlsx"
+            if "mimetype" in names and zf.read("mimetype").decode(errors="replace").strip() == ODS_MIME:
+                return "ods"
+            raise NotASpreadsheet("a zip package that is no spreadsheet")
+    except zipfile.BadZipFile:
+        pass
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise NotASpreadsheet("neither a spreadsheet package nor text") from None
+    return "csv"
+
+
+def read_workbook(data: bytes) -> tuple[str, Sheets]:
+    """(kind, sheets) of .xlsx, .ods or .csv bytes."""
+    kind = spreadsheet_kind(data)
+    if kind == "xlsx":
+        from openpyxl import load_workbook
+
+        wb = load_workbook(io.BytesIO(data), data_only=True, read_only=True)
+        return kind, {ws.title: _trim([[cell_value(v) for v in row] for row in ws.iter_rows(values_only=True)])
+                      for ws in wb.worksheets}
+    if kind == "ods":
+        return kind, _read_ods(data)
+    text = data.decode("utf-8").lstrip("\ufeff")
+    return kind, {"csv": _trim([[cell_value(v) for v in row] for row in csv.reader(io.StringIO(text))])}
+
+
+def _read_ods(data: bytes) -> Sheets:
+    from odf import teletype
+    from odf.namespaces import OFFICENS, TABLENS
+    from odf.opendocument import load
+    from odf.table import Table, TableRow
+
+    doc = load(io.BytesIO(data))
+    sheets: Sheets = {}
+    for table in doc.spreadsheet.getElementsByType(Table):
+        rows: list[list[object]] = []
+        for tr in table.getElementsByType(TableRow):
+            row: list[object] = []
+            for cell in tr.childNodes:
+                if cell.qname[1] not in ("table-cell", "covered-table-cell"):
+                    continue
+                repeat = int(cell.attributes.get((TABLENS, "number-columns-repeated"), 1))
+                vtype = cell.attributes.get((OFFICENS, "value-type"))
+                if vtype in ("float", "percentage", "currency"):
+                    value = cell_value(float(cell.attributes.get((OFFICENS, "value"))))
+                else:
+                    value = cell_value(teletype.extractText(cell)) if vtype else None
+                row.extend([value] * min(repeat, 1024))
+            repeat_rows = int(tr.attributes.get((TABLENS, "number-rows-repeated"), 1))
+            rows.extend([row] * min(repeat_rows, 1024))
+        sheets[table.getAttribute("name")] = _trim(rows)
+    return sheets
+
+
+def cell_at(rows: list[list[object]], ref: str) -> object:
+    """The value at an A1-style reference such as "C12" (None when empty or outside the data)."""
+    m = re.fullmatch(r"([A-Za-z]+)(\d+)", ref.strip())
+    if not m:
+        raise ValueError(f"bad cell reference {ref!r}")
+    col = 0
+    for ch in m.group(1).upper():
+        col = col * 26 + ord(ch) - 64
+    r, c = int(m.group(2)) - 1, col - 1
+    return rows[r][c] if r < len(rows) and c < len(rows[r]) else None
+
+
+def _with_workbook(state: FinalState, path: str, platform: str | None, want: str, check) -> Verdict:
+    data = state.pull(path, platform)
+    if data is None:
+        return Verdict.check(False, want, f"no file at {path}")
+    try:
+        kind, sheets = read_workbook(data)
+    except Exception as exc:  # a corrupt file is a finding, not a crash
+        return Verdict.check(False, want, f"{path} unreadable: {exc}")
+    return check(kind, sheets)
+
+
+def _first(sheets: Sheets) -> list[list[object]]:
+    return next(iter(sheets.values()), [])
+
+
+def _fmt(v: object) -> str:
+    return f"{v:g}" if isinstance(v, float) else repr(v)
+
+
+# -- checks --------------------------------------------------------------------------------------------------
+def check_sorted_from(rows: list[list[object]], ref: list[list[object]], column: str, descending: bool) -> Verdict:
+    """`rows` are the rows of `ref` (same header, same data rows) sorted by the column headed `column`."""
+    want = f"the rows of the original sorted by {column} ({'descending' if descending else 'ascending'})"
+    if not rows or not ref or rows[0] != ref[0]:
+        return Verdict.check(False, want, f"header {rows[0] if rows else None!r}")
+    if column not in ref[0]:
+        return Verdict.check(False, want, f"no column {column!r} in {ref[0]!r}")
+    i = ref[0].index(column)
+    data = rows[1:]
+    if sorted(map(repr, data)) != sorted(map(repr, ref[1:])):
+        return Verdict.check(False, want, f"{len(data)} rows that differ from the original's {len(ref) - 1}")
+    keys = [r[i] if i < len(r) else None for r in data]
+    ok = keys == sorted(keys, key=lambda k: (k is None, k), reverse=bool(descending))
+    return Verdict.check(ok, want, f"{column} in the order {[_fmt(k) for k in keys][:12]}")
+
+
+@evaluator("sheet_sorted_from")
+def sheet_sorted_from(state: FinalState, path: str, reference: str, column: str, order: str = "ascending",
+                      platform: str | None = None) -> Verdict:
+    """`path`'s first sheet holds the rows of `reference`'s first sheet sorted by `column` in `order`
+    ("ascending" or "descending")."""
+    descending = str(order).lower().startswith("desc")
+    ref = state.pull(reference, platform)
+    if ref is None:
+        return Verdict.check(False, f"the rows of {reference}", "no original")
+    try:
+        ref_rows = _first(read_workbook(ref)[1])
+    except Exception as exc:
+        return Verdict.check(False, f"the rows of {reference}", f"an unreadable original ({exc})")
+    return _with_workbook(state, path, platform, f"{path} sorted by {column}",
+                          lambda kind, sheets: check_sorted_from(_first(sheets), ref_rows, column, descending))
+
+
+def check_cell_aggregate(rows: list[list[object]], cell: str, function: str, cells: str) -> Verdict:
+    """The value at `cell` equals the SUM/AVERAGE/MAX/MIN of the numbers in the range `cells` (e.g. C2:C11)."""
+    start, _, end = cells.partition(":")
+    col = re.match(r"[A-Za-z]+", start).group(0)
+    first, last = int(start[len(col):]), int(end[len(col):])
+    values = [cell_at(rows, f"{col}{r}") for r in range(first, last + 1)]
+    numbers = [v for v in values if isinstance(v, float)]
+    if not numbers:
+        return Verdict.check(False, f"{cell} = {function}({cells})", f"no numbers in {cells}")
+    want = {"SUM": sum(numbers), "AVERAGE": sum(numbers) / len(numbers), "MAX": max(numbers),
+            "MIN": min(numbers)}[function.upper()]
+    got = cell_at(rows, cell)
+    ok = isinstance(got, float) and abs(got - want) <= 0.005  # a typed-in value rounded to 2 decimals
+    return Verdict.check(ok, f"{cell} = {function.upper()}({cells}) = {want:g}", f"{cell} = {_fmt(got)}")
+
+
+@evaluator("sheet_cell_aggregate")
+def sheet_cell_aggregate(state: FinalState, path: str, cell: str, function: str, cells: str,
+                         platform: str | None = None) -> Verdict:
+    """In the first sheet, `cell` holds the `function` (SUM, AVERAGE, MAX, MIN) of the range `cells`."""
+    return _with_workbook(state, path, platform, f"{cell} = {function}({cells})",
+                          lambda kind, sheets: check_cell_aggregate(_first(sheets), cell, function, cells))
+
+
+def check_sheet_names(names: list[str], present: str, absent: str | None) -> Verdict:
+    ok = present in names and (absent is None or absent not in names)
+    return Verdict.check(ok, f"a sheet named {present!r}" + (f" and none named {absent!r}" if absent else ""),
+                         f"sheets {names!r}")
+
+
+@evaluator("sheet_names_are")
+def sheet_names_are(state: FinalState, path: str, present: str, absent: str | None = None,
+                    platform: str | None = None) -> Verdict:
+    """The workbook has a sheet named `present` (and none named `absent`)."""
+    return _with_workbook(state, path, platform, f"a sheet named {present!r}",
+                          lambda kind, sheets: check_sheet_names(list(sheets), present, absent))
+
+
+def check_same_data(kind: str, rows: list[list[object]], want_kind: str | None, ref: list[list[object]]) -> Verdict:
+    """The workbook is of `want_kind` and its first sheet has the cell values of `ref`."""
+    if want_kind and kind != want_kind:
+        return Verdict.check(False, f"a .{want_kind} spreadsheet", f"a .{kind} file")
+    diff = next((f"row {i + 1}: {a!r} instead of {b!r}" for i, (a, b) in enumerate(zip(rows, ref)) if a != b),
+                None) or (f"{len(rows)} rows instead of {len(ref)}" if len(rows) != len(ref) else None)
+    return Verdict.check(diff is None, f"the {len(ref)} rows of the original", diff or "them")
+
+
+@evaluator("sheet_same_data")
+def sheet_same_data(state: FinalState, path: str, reference: str, kind: str | None = None,
+                    platform: str | None = None) -> Verdict:
+    """`path` (of `kind`: xlsx, ods, csv) holds the same cell values as `reference`'s first sheet."""
+    ref = state.pull(reference, platform)
+    if ref is None:
+        return Verdict.check(False, f"the data of {reference}", "no original")
+    try:
+        ref_rows = _first(read_workbook(ref)[1])
+    except Exception as exc:
+        return Verdict.check(False, f"the data of {reference}", f"an unreadable original ({exc})")
+    return _with_workbook(state, path, platform, f"a copy of {reference}",
+                          lambda k, sheets: check_same_data(k, _first(sheets), kind, ref_rows))
+
+
+def check_rows_without(rows: list[list[object]], column: str, value: str, count: int) -> Verdict:
+    """No data row has `value` in the column headed `column`, and `count` data rows are left."""
+    if not rows or column not in rows[0]:
+        return Verdict.check(False, f"a column {column!r}", f"header {rows[0] if rows else None!r}")
+    i = rows[0].index(column)
+    data = [r for r in rows[1:] if any(v is not None for v in r)]
+    hits = [r for r in data if i < len(r) and r[i] == value]
+    return Verdict.check(not hits and len(data) == int(count),
+                         f"{count} data rows, none with {column} = {value!r}",
+                         f"{len(data)} rows, {len(hits)} with it")
+
+
+@evaluator("sheet_rows_without")
+def sheet_rows_without(state: FinalState, path: str, column: str, value: str, count: int,
+                       platform: str | None = None) -> Verdict:
+    return _with_workbook(state, path, platform, f"no rows with {column} = {value!r}",
+                          lambda kind, sheets: check_rows_without(_first(sheets), column, value, int(count)))
+
+
+def check_cell_equals(rows: list[list[object]], cell: str, expected: object) -> Verdict:
+    got, want = cell_at(rows, cell), cell_value(expected)
+    ok = got == want if not isinstance(want, float) else isinstance(got, float) and abs(got - want) < 1e-9
+    return Verdict.check(ok, f"{cell} = {_fmt(want)}", f"{cell} = {_fmt(got)}")
+
+
+@evaluator("sheet_cell_equals")
+def sheet_cell_equals(state: FinalState, path: str, cell: str, expected: object, platform: str | None = None) -> Verdict:
+    """In the first sheet, `cell` holds `expected` (numbers compared as numbers, text trimmed)."""
+    return _with_workbook(state, path, platform, f"{cell} = {expected!r}",
+                          lambda kind, sheets: check_cell_equals(_first(sheets), cell, expected))

@@ -1,5 +1,67 @@
-"""Generators of documents files."""
+"""Generators of text documents: .docx (python-docx) and .odt (odfpy) with plain paragraphs, deterministic from
+their arguments (fixed metadata dates; the same content for the same arguments), so a task's document carries its instance's values."""
 
 from __future__ import annotations
 
-from jarvis_pytest.generators.registry import generator  # noqa: F401
+import io
+
+from jarvis_pytest.generators.registry import generator
+
+FIXED_DATE = "2025-01-06T09:00:00"
+
+
+def _paragraph_list(paragraphs: list[str]) -> list[str]:
+    if not isinstance(paragraphs, list) or not all(isinstance(p, (str, int, float)) for p in paragraphs):
+        raise TypeError("`paragraphs` must be a list of strings")
+    return [str(p) for p in paragraphs]
+
+
+@generator("docx_document")
+def docx_document(paragraphs: list[str]) -> bytes:
+    """A .docx whose body is `paragraphs`, each a plain paragraph in the Normal style."""
+    import datetime
+
+    import docx
+
+    d = docx.Document()
+    for text in _paragraph_list(paragraphs):
+        d.add_paragraph(text)
+    stamp = datetime.datetime.fromisoformat(FIXED_DATE)
+    d.core_properties.created = d.core_properties.modified = stamp
+    d.core_properties.author = "jarvis"
+    buf = io.BytesIO()
+    d.save(buf)
+    return _fixed_zip_times(buf.getvalue())
+
+
+@generator("odt_document")
+def odt_document(paragraphs: list[str]) -> bytes:
+    """An .odt whose body is `paragraphs`, each a plain paragraph in the default style."""
+    from odf.opendocument import OpenDocumentText
+    from odf.text import P
+
+    doc = OpenDocumentText()
+    for text in _paragraph_list(paragraphs):
+        doc.text.addElement(P(text=text))
+    buf = io.BytesIO()
+    doc.write(buf)
+    return _fixed_zip_times(buf.getvalue())
+
+
+def _fixed_zip_times(data: bytes) -> bytes:
+    """The same package with every member's time fixed (and ODF's volatile meta dates dropped), so equal
+    arguments give equal bytes."""
+    import re
+    import zipfile
+
+    src = zipfile.ZipFile(io.BytesIO(data))
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w") as dst:
+        for info in src.infolist():
+            body = src.read(info.filename)
+            if info.filename == "meta.xml":
+                body = re.sub(rb"<meta:(creation-date|generator)>[^<]*</meta:\1>", b"", body)
+            fixed = zipfile.ZipInfo(info.filename, date_time=(2025, 1, 6, 9, 0, 0))
+            fixed.compress_type = zipfile.ZIP_STORED if info.filename == "mimetype" else zipfile.ZIP_DEFLATED
+            dst.writestr(fixed, body)
+    return out.getvalue()
