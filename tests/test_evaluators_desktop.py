@@ -85,3 +85,45 @@ def test_mp3_and_snapshot_checks():
     Image.new("RGB", (64, 48), "#c03020").save(png, "PNG")
     assert check_snapshot_color(png.getvalue(), "#c03020").passed
     assert not check_snapshot_color(png.getvalue(), "#2060c0").passed
+
+
+def test_image_checks_tell_transformations_apart():
+    from jarvis_pytest.evaluators.images import (TRANSFORMS, check_border, check_format, check_grayscale,
+                                                 check_scaled, check_side_by_side, check_transformed,
+                                                 open_image)
+    from PIL import ImageOps
+
+    png = generate("quadrant_image", {"width": 300, "height": 200})
+    ref = open_image(png).convert("RGB")
+    for name, transform in TRANSFORMS.items():
+        assert check_transformed(transform(ref), ref, name).passed, name
+        if name != "identity":
+            assert not check_transformed(ref, ref, name).passed, name  # the untouched picture fails
+    assert not check_transformed(ImageOps.flip(ref), ref, "flip_horizontal").passed
+    assert check_format(open_image(png), "PNG").passed and not check_format(open_image(png), "JPEG").passed
+    jpeg = open_image(generate("quadrant_image", {"width": 300, "height": 200, "format": "JPEG"}))
+    assert check_format(jpeg, "jpeg").passed
+    assert check_scaled(ref.resize((150, 100)), ref, percent=50).passed
+    assert check_scaled(ref.resize((120, 80)), ref, width=120).passed
+    assert not check_scaled(ref.resize((120, 100)), ref, width=120).passed  # aspect ratio lost
+    assert check_grayscale(ImageOps.grayscale(ref)).passed and not check_grayscale(ref).passed
+    framed = ImageOps.expand(ref, border=10, fill="#ffd700")
+    assert check_border(framed, ref, 10, "#ffd700").passed
+    assert not check_border(framed, ref, 10, "#000000").passed and not check_border(ref, ref, 10, "#ffd700").passed
+    both = Image.new("RGB", (600, 200))
+    both.paste(ref, (0, 0))
+    both.paste(ImageOps.invert(ref), (300, 0))
+    assert check_side_by_side(both, ref, ImageOps.invert(ref)).passed
+    assert not check_side_by_side(both, ImageOps.invert(ref), ref).passed
+
+
+def test_bookmarks_in_every_folder():
+    from jarvis_pytest.evaluators.browser import check_bookmark
+
+    text = ('{"roots": {"bookmark_bar": {"children": [], "type": "folder"}, "other": {"type": "folder", '
+            '"children": [{"type": "folder", "children": [{"type": "url", "name": "Read later", '
+            '"url": "file:///home/user/site/a.html"}]}]}}}')
+    assert check_bookmark(text, "file:///home/user/site/a.html", "Read later").passed
+    assert not check_bookmark(text, "file:///home/user/site/a.html", "Other name").passed
+    assert not check_bookmark(text, "file:///home/user/site/b.html").passed
+    assert not check_bookmark(None, "file:///x").passed and not check_bookmark("{", "file:///x").passed

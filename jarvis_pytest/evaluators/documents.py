@@ -13,9 +13,12 @@ import zipfile
 from dataclasses import dataclass, field
 
 from jarvis_pytest.evaluators.registry import Verdict, evaluator
-from jarvis_pytest.evaluators.state import FinalState
+from jarvis_pytest.evaluators.state import FinalState, judge_file
 
-ODT_MIME = "application/vnd.oasis.opendocument.text"
+ODF_KINDS = {"application/vnd.oasis.opendocument.text": "odt",
+             "application/vnd.oasis.opendocument.spreadsheet": "ods",
+             "application/vnd.oasis.opendocument.presentation": "odp"}
+OOXML_PARTS = {"word/document.xml": "docx", "xl/workbook.xml": "xlsx", "ppt/presentation.xml": "pptx"}
 
 
 class NotADocument(ValueError):
@@ -52,19 +55,24 @@ def norm(text: str) -> str:
     return " ".join(str(text).split())
 
 
-def document_kind(data: bytes) -> str:
-    """"odt" or "docx" by the package's content (not its file name); NotADocument otherwise."""
+def office_kind(data: bytes) -> str:
+    """The office format of `data` by its content, not a file name: "odt", "ods", "odp" (ODF mimetype),
+    "docx", "xlsx", "pptx" (OOXML part), "zip" for another zip package, "" for no zip at all."""
     try:
         with zipfile.ZipFile(io.BytesIO(data)) as zf:
             names = set(zf.namelist())
-            if "mimetype" in names and zf.read("mimetype").decode(errors="replace").strip() == ODT_MIME:
-                return "odt"
-            if "word/document.xml" in names:
-                return "docx"
-            kind = zf.read("mimetype").decode(errors="replace").strip() if "mimetype" in names else "no mimetype"
+            mime = zf.read("mimetype").decode(errors="replace").strip() if "mimetype" in names else ""
     except zipfile.BadZipFile:
-        raise NotADocument("not a document package (no zip)") from None
-    raise NotADocument(f"not a text document ({kind})")
+        return ""
+    return ODF_KINDS.get(mime) or next((k for part, k in OOXML_PARTS.items() if part in names), "zip")
+
+
+def document_kind(data: bytes) -> str:
+    """"odt" or "docx" by the package's content; NotADocument otherwise."""
+    kind = office_kind(data)
+    if kind not in ("odt", "docx"):
+        raise NotADocument(f"not a text document ({kind or 'no zip package'})")
+    return kind
 
 
 def read_document(data: bytes) -> Document:
@@ -177,14 +185,7 @@ def _read_docx(data: bytes) -> Document:
 
 
 def _with_document(state: FinalState, path: str, platform: str | None, want: str, check) -> Verdict:
-    data = state.pull(path, platform)
-    if data is None:
-        return Verdict.check(False, want, f"no file at {path}")
-    try:
-        doc = read_document(data)
-    except (NotADocument, Exception) as exc:  # a corrupt package is a finding, not a crash
-        return Verdict.check(False, want, f"{path} unreadable: {exc}")
-    return check(doc)
+    return judge_file(state, path, want, read_document, check, platform)
 
 
 # -- checks --------------------------------------------------------------------------------------------------

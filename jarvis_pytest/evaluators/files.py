@@ -9,7 +9,7 @@ import zipfile
 from urllib.parse import unquote
 
 from jarvis_pytest.evaluators.registry import Verdict, evaluator
-from jarvis_pytest.evaluators.state import FinalState
+from jarvis_pytest.evaluators.state import FinalState, judge_file
 
 
 def _short(text: str, limit: int = 120) -> str:
@@ -158,10 +158,8 @@ def check_zip_members(data: bytes, names: list[str]) -> Verdict:
 
 @evaluator("zip_contains")
 def zip_contains(state: FinalState, path: str, names: list[str], platform: str | None = None) -> Verdict:
-    data = state.pull(path, platform)
-    if data is None:
-        return Verdict.check(False, f"a zip archive at {path}", "no file")
-    return check_zip_members(data, names)
+    return judge_file(state, path, f"a zip archive at {path}", bytes, lambda data: check_zip_members(data, names),
+                      platform)
 
 
 def check_ini_value(text: str, key: str, expected: str) -> Verdict:

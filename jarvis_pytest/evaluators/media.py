@@ -12,7 +12,7 @@ from urllib.parse import unquote, urlparse
 from PIL import Image, ImageStat
 
 from jarvis_pytest.evaluators.registry import Verdict, evaluator
-from jarvis_pytest.evaluators.state import FinalState
+from jarvis_pytest.evaluators.state import FinalState, judge_file
 
 MP3_BITRATES = (0, 32, 40, 48, 56, 64, 80, 96, 112, 128, 160, 192, 224, 256, 320)  # MPEG-1 layer III, kbit/s
 MP3_RATES = (44100, 48000, 32000)
@@ -42,10 +42,8 @@ def check_playlist(data: bytes, expected: list[str]) -> Verdict:
 
 @evaluator("playlist_is")
 def playlist_is(state: FinalState, path: str, entries: list[str], platform: str | None = None) -> Verdict:
-    data = state.pull(path, platform)
-    if data is None:
-        return Verdict.check(False, f"a playlist at {path}", "no file")
-    return check_playlist(data, entries)
+    return judge_file(state, path, f"a playlist at {path}", bytes, lambda data: check_playlist(data, entries),
+                      platform)
 
 
 def mp3_seconds(data: bytes) -> float | None:
@@ -82,10 +80,7 @@ def check_mp3(data: bytes, min_seconds: float) -> Verdict:
 
 @evaluator("audio_is_mp3")
 def audio_is_mp3(state: FinalState, path: str, min_seconds: float = 1.0, platform: str | None = None) -> Verdict:
-    data = state.pull(path, platform)
-    if data is None:
-        return Verdict.check(False, f"an MP3 at {path}", "no file")
-    return check_mp3(data, min_seconds)
+    return judge_file(state, path, f"an MP3 at {path}", bytes, lambda data: check_mp3(data, min_seconds), platform)
 
 
 def hex_rgb(color: str) -> tuple[int, int, int]:

@@ -7,14 +7,12 @@ body, and speaker notes), so each check is written once for both formats.
 from __future__ import annotations
 
 import io
-import zipfile
 from dataclasses import dataclass, field
 
-from jarvis_pytest.evaluators.documents import check_pdf_text, norm
+from jarvis_pytest.evaluators.documents import check_pdf_text, norm, office_kind
 from jarvis_pytest.evaluators.registry import Verdict, evaluator
-from jarvis_pytest.evaluators.state import FinalState
+from jarvis_pytest.evaluators.state import FinalState, judge_file
 
-ODP_MIME = "application/vnd.oasis.opendocument.presentation"
 
 
 @dataclass
@@ -25,16 +23,11 @@ class Slide:
 
 
 def presentation_kind(data: bytes) -> str:
-    try:
-        with zipfile.ZipFile(io.BytesIO(data)) as zf:
-            names = set(zf.namelist())
-            if "ppt/presentation.xml" in names:
-                return "pptx"
-            if "mimetype" in names and zf.read("mimetype").decode(errors="replace").strip() == ODP_MIME:
-                return "odp"
-    except zipfile.BadZipFile:
-        raise ValueError("not a presentation package (no zip)") from None
-    raise ValueError("a package that is no presentation")
+    """"pptx" or "odp" by content; ValueError otherwise."""
+    kind = office_kind(data)
+    if kind not in ("pptx", "odp"):
+        raise ValueError(f"not a presentation ({kind or 'no zip package'})")
+    return kind
 
 
 def read_presentation(data: bytes) -> tuple[str, list[Slide]]:
@@ -95,14 +88,7 @@ def _ancestors(node):
 
 
 def _with_presentation(state: FinalState, path: str, platform: str | None, want: str, check) -> Verdict:
-    data = state.pull(path, platform)
-    if data is None:
-        return Verdict.check(False, want, f"no file at {path}")
-    try:
-        kind, slides = read_presentation(data)
-    except Exception as exc:  # a corrupt file is a finding, not a crash
-        return Verdict.check(False, want, f"{path} unreadable: {exc}")
-    return check(kind, slides)
+    return judge_file(state, path, want, read_presentation, lambda parsed: check(*parsed), platform)
 
 
 def check_titles(kind: str, slides: list[Slide], titles: list[str], want_kind: str | None = None) -> Verdict:

@@ -10,12 +10,11 @@ from __future__ import annotations
 import csv
 import io
 import re
-import zipfile
 
+from jarvis_pytest.evaluators.documents import office_kind
 from jarvis_pytest.evaluators.registry import Verdict, evaluator
-from jarvis_pytest.evaluators.state import FinalState
+from jarvis_pytest.evaluators.state import FinalState, judge_file
 
-ODS_MIME = "application/vnd.oasis.opendocument.spreadsheet"
 Sheets = dict[str, list[list[object]]]
 
 
@@ -51,17 +50,12 @@ def _trim(rows: list[list[object]]) -> list[list[object]]:
 
 
 def spreadsheet_kind(data: bytes) -> str:
-    """"xlsx", "ods" or "csv" by content."""
-    try:
-        with zipfile.ZipFile(io.BytesIO(data)) as zf:
-            names = set(zf.namelist())
-            if "xl/workbook.xml" in names:
-                return "xlsx"
-            if "mimetype" in names and zf.read("mimetype").decode(errors="replace").strip() == ODS_MIME:
-                return "ods"
-            raise NotASpreadsheet("a zip package that is no spreadsheet")
-    except zipfile.BadZipFile:
-        pass
+    """"xlsx", "ods" or "csv" (UTF-8 text) by content."""
+    kind = office_kind(data)
+    if kind in ("xlsx", "ods"):
+        return kind
+    if kind:
+        raise NotASpreadsheet(f"a {kind} package, no spreadsheet")
     try:
         data.decode("utf-8")
     except UnicodeDecodeError:
@@ -125,14 +119,16 @@ def cell_at(rows: list[list[object]], ref: str) -> object:
 
 
 def _with_workbook(state: FinalState, path: str, platform: str | None, want: str, check) -> Verdict:
-    data = state.pull(path, platform)
-    if data is None:
-        return Verdict.check(False, want, f"no file at {path}")
-    try:
-        kind, sheets = read_workbook(data)
-    except Exception as exc:  # a corrupt file is a finding, not a crash
-        return Verdict.check(False, want, f"{path} unreadable: {exc}")
-    return check(kind, sheets)
+    return judge_file(state, path, want, read_workbook, lambda parsed: check(*parsed), platform)
+
+
+def _compared_with(state: FinalState, path: str, reference: str, platform: str | None, want: str,
+                   check) -> Verdict:
+    """`check(kind, rows, reference_rows)` on the first sheets of `path` and of the original `reference`."""
+    return judge_file(state, reference, f"the original {reference}", lambda data: _first(read_workbook(data)[1]),
+                      lambda ref_rows: _with_workbook(state, path, platform, want,
+                                                      lambda kind, sheets: check(kind, _first(sheets), ref_rows)),
+                      platform)
 
 
 def _first(sheets: Sheets) -> list[list[object]]:
@@ -166,15 +162,8 @@ def sheet_sorted_from(state: FinalState, path: str, reference: str, column: str,
     """`path`'s first sheet holds the rows of `reference`'s first sheet sorted by `column` in `order`
     ("ascending" or "descending")."""
     descending = str(order).lower().startswith("desc")
-    ref = state.pull(reference, platform)
-    if ref is None:
-        return Verdict.check(False, f"the rows of {reference}", "no original")
-    try:
-        ref_rows = _first(read_workbook(ref)[1])
-    except Exception as exc:
-        return Verdict.check(False, f"the rows of {reference}", f"an unreadable original ({exc})")
-    return _with_workbook(state, path, platform, f"{path} sorted by {column}",
-                          lambda kind, sheets: check_sorted_from(_first(sheets), ref_rows, column, descending))
+    return _compared_with(state, path, reference, platform, f"{path} sorted by {column}",
+                          lambda kind, rows, ref_rows: check_sorted_from(rows, ref_rows, column, descending))
 
 
 def check_cell_aggregate(rows: list[list[object]], cell: str, function: str, cells: str) -> Verdict:
@@ -228,15 +217,8 @@ def check_same_data(kind: str, rows: list[list[object]], want_kind: str | None, 
 def sheet_same_data(state: FinalState, path: str, reference: str, kind: str | None = None,
                     platform: str | None = None) -> Verdict:
     """`path` (of `kind`: xlsx, ods, csv) holds the same cell values as `reference`'s first sheet."""
-    ref = state.pull(reference, platform)
-    if ref is None:
-        return Verdict.check(False, f"the data of {reference}", "no original")
-    try:
-        ref_rows = _first(read_workbook(ref)[1])
-    except Exception as exc:
-        return Verdict.check(False, f"the data of {reference}", f"an unreadable original ({exc})")
-    return _with_workbook(state, path, platform, f"a copy of {reference}",
-                          lambda k, sheets: check_same_data(k, _first(sheets), kind, ref_rows))
+    return _compared_with(state, path, reference, platform, f"a copy of {reference}",
+                          lambda k, rows, ref_rows: check_same_data(k, rows, kind, ref_rows))
 
 
 def check_rows_without(rows: list[list[object]], column: str, value: str, count: int) -> Verdict:

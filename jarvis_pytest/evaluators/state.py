@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import shlex
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 from jarvis_pytest.devices.base import Device
 from jarvis_pytest.errors import InfrastructureError
+from jarvis_pytest.evaluators.registry import Verdict
 
 
 @dataclass
@@ -47,3 +48,17 @@ class FinalState:
     def pull_text(self, path: str, platform: str | None = None) -> str | None:
         data = self.pull(path, platform)
         return None if data is None else data.decode("utf-8", errors="replace")
+
+
+def judge_file(state: FinalState, path: str, want: str, parse: Callable[[bytes], Any],
+               check: Callable[[Any], Verdict], platform: str | None = None) -> Verdict:
+    """Pull `path`, `parse` its bytes and `check` the result. A missing file, or one that does not parse (a
+    corrupt or wrong-format file is a finding, not a crash), is a failed verdict saying so."""
+    data = state.pull(path, platform)
+    if data is None:
+        return Verdict.check(False, want, f"no file at {path}")
+    try:
+        parsed = parse(data)
+    except Exception as exc:
+        return Verdict.check(False, want, f"{path} unreadable: {exc}")
+    return check(parsed)
