@@ -294,46 +294,32 @@ def check_pdf_text(data: bytes, contains: list[str], pages: int | None = None) -
 @evaluator("pdf_has_text")
 def pdf_has_text(state: FinalState, path: str, contains: list[str], pages: int | None = None,
                  platform: str | None = None) -> Verdict:
-    data = state.pull(path, platform)
-    if data is None:
-        return Verdict.check(False, f"a PDF at {path}", "no file")
-    return check_pdf_text(data, contains, pages)
+    return judge_file(state, path, f"a PDF at {path}", bytes, lambda data: check_pdf_text(data, contains, pages),
+                      platform)
 
 
-def _source_lines(state: FinalState, reference: str, platform: str | None) -> list[str] | Verdict:
-    data = state.pull(reference, platform)
-    if data is None:
-        return Verdict.check(False, f"the text of {reference}", "no source document")
-    try:
-        return [norm(p.text) for p in read_document(data).paragraphs if norm(p.text)]
-    except Exception as exc:
-        return Verdict.check(False, f"the text of {reference}", f"an unreadable source ({exc})")
+def paragraph_lines(data: bytes) -> list[str]:
+    """The non-empty paragraphs of an .odt/.docx, whitespace-normalised."""
+    return [norm(p.text) for p in read_document(data).paragraphs if norm(p.text)]
 
 
 @evaluator("document_same_text")
 def document_same_text(state: FinalState, path: str, reference: str, kind: str | None = None,
                        platform: str | None = None) -> Verdict:
     """`path` is a document (of `kind`, when given) with the same non-empty paragraphs as `reference`."""
-    source = _source_lines(state, reference, platform)
-    if isinstance(source, Verdict):
-        return source
-
-    def check(doc: Document) -> Verdict:
+    def check(doc: Document, source: list[str]) -> Verdict:
         if kind and doc.kind != kind:
             return Verdict.check(False, f"a .{kind} document", f"a .{doc.kind} document")
         got = [norm(p.text) for p in doc.paragraphs if norm(p.text)]
         return Verdict.check(got == source, f"the {len(source)} paragraphs of {reference}",
                              f"{len(got)} paragraphs" + ("" if got == source else f", first {got[:2]!r}"))
-    return _with_document(state, path, platform, f"a copy of {reference}", check)
+    return judge_file(state, reference, f"the text of {reference}", paragraph_lines,
+                      lambda source: _with_document(state, path, platform, f"a copy of {reference}",
+                                                    lambda doc: check(doc, source)), platform)
 
 
 @evaluator("pdf_matches_document")
 def pdf_matches_document(state: FinalState, path: str, document: str, platform: str | None = None) -> Verdict:
     """`path` is a PDF showing the text of every paragraph of `document` (an .odt/.docx)."""
-    source = _source_lines(state, document, platform)
-    if isinstance(source, Verdict):
-        return source
-    data = state.pull(path, platform)
-    if data is None:
-        return Verdict.check(False, f"a PDF at {path}", "no file")
-    return check_pdf_text(data, source)
+    return judge_file(state, document, f"the text of {document}", paragraph_lines,
+                      lambda source: pdf_has_text(state, path, source, platform=platform), platform)

@@ -9,7 +9,7 @@ import zipfile
 from urllib.parse import unquote
 
 from jarvis_pytest.evaluators.registry import Verdict, evaluator
-from jarvis_pytest.evaluators.state import FinalState, judge_file
+from jarvis_pytest.evaluators.state import FinalState, as_text, judge_file
 
 
 def _short(text: str, limit: int = 120) -> str:
@@ -97,10 +97,8 @@ def check_line_endings(data: bytes, ending: str) -> Verdict:
 
 @evaluator("file_line_endings")
 def file_line_endings(state: FinalState, path: str, ending: str, platform: str | None = None) -> Verdict:
-    data = state.pull(path, platform)
-    if data is None:
-        return Verdict.check(False, f"{path} with {ending.upper()} line ends", "no file")
-    return check_line_endings(data, ending.lower())
+    return judge_file(state, path, f"{path} with {ending.upper()} line ends", bytes,
+                      lambda data: check_line_endings(data, ending.lower()), platform)
 
 
 def check_last_line(text: str, expected: str, previous: list[str] | None = None) -> Verdict:
@@ -116,10 +114,8 @@ def check_last_line(text: str, expected: str, previous: list[str] | None = None)
 @evaluator("file_last_line")
 def file_last_line(state: FinalState, path: str, expected: str, previous: list[str] | None = None,
                    platform: str | None = None) -> Verdict:
-    text = state.pull_text(path, platform)
-    if text is None:
-        return Verdict.check(False, f"{path} ending with {_short(expected)}", "no file")
-    return check_last_line(text, expected, previous)
+    return judge_file(state, path, f"{path} ending with {_short(expected)}", as_text,
+                      lambda text: check_last_line(text, expected, previous), platform)
 
 
 def check_lines_filtered(text: str, word: str, kept: list[str]) -> Verdict:
@@ -136,10 +132,8 @@ def check_lines_filtered(text: str, word: str, kept: list[str]) -> Verdict:
 @evaluator("file_lines_without")
 def file_lines_without(state: FinalState, path: str, word: str, kept: list[str],
                        platform: str | None = None) -> Verdict:
-    text = state.pull_text(path, platform)
-    if text is None:
-        return Verdict.check(False, f"{path} without lines containing {word!r}", "no file")
-    return check_lines_filtered(text, word, kept)
+    return judge_file(state, path, f"{path} without lines containing {word!r}", as_text,
+                      lambda text: check_lines_filtered(text, word, kept), platform)
 
 
 def check_zip_members(data: bytes, names: list[str]) -> Verdict:
@@ -178,10 +172,8 @@ def check_ini_value(text: str, key: str, expected: str) -> Verdict:
 @evaluator("config_value_is")
 def config_value_is(state: FinalState, path: str, key: str, expected: str, platform: str | None = None) -> Verdict:
     """An application's INI-style configuration file sets `key` to `expected`."""
-    text = state.pull_text(path, platform)
-    if text is None:
-        return Verdict.check(False, f"{key}={expected} in {path}", "no file")
-    return check_ini_value(text, key, str(expected))
+    return judge_file(state, path, f"{key}={expected} in {path}", as_text,
+                      lambda text: check_ini_value(text, key, str(expected)), platform)
 
 
 TRASH = "/home/user/.local/share/Trash"

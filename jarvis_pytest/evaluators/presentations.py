@@ -9,7 +9,7 @@ from __future__ import annotations
 import io
 from dataclasses import dataclass, field
 
-from jarvis_pytest.evaluators.documents import check_pdf_text, norm, office_kind
+from jarvis_pytest.evaluators.documents import norm, office_kind, pdf_has_text
 from jarvis_pytest.evaluators.registry import Verdict, evaluator
 from jarvis_pytest.evaluators.state import FinalState, judge_file
 
@@ -145,14 +145,7 @@ def slide_notes_contain(state: FinalState, path: str, number: int, text: str, pl
 @evaluator("pdf_matches_presentation")
 def pdf_matches_presentation(state: FinalState, path: str, presentation: str, platform: str | None = None) -> Verdict:
     """`path` is a PDF with one page per slide of `presentation` (.pptx/.odp) showing every slide's title."""
-    data = state.pull(presentation, platform)
-    try:
-        _, slides = read_presentation(data) if data is not None else ("", None)
-    except Exception as exc:
-        return Verdict.check(False, f"the slides of {presentation}", f"an unreadable source ({exc})")
-    if slides is None:
-        return Verdict.check(False, f"the slides of {presentation}", "no source presentation")
-    pdf = state.pull(path, platform)
-    if pdf is None:
-        return Verdict.check(False, f"a PDF at {path}", "no file")
-    return check_pdf_text(pdf, [s.title for s in slides if s.title], len(slides))
+    def check(slides: list[Slide]) -> Verdict:
+        return pdf_has_text(state, path, [s.title for s in slides if s.title], len(slides), platform)
+    return judge_file(state, presentation, f"the slides of {presentation}",
+                      lambda data: read_presentation(data)[1], check, platform)

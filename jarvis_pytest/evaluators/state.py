@@ -47,7 +47,12 @@ class FinalState:
 
     def pull_text(self, path: str, platform: str | None = None) -> str | None:
         data = self.pull(path, platform)
-        return None if data is None else data.decode("utf-8", errors="replace")
+        return None if data is None else as_text(data)
+
+
+def as_text(data: bytes) -> str:
+    """File bytes as text (UTF-8; undecodable bytes replaced)."""
+    return data.decode("utf-8", errors="replace")
 
 
 def judge_file(state: FinalState, path: str, want: str, parse: Callable[[bytes], Any],
