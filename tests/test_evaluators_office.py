@@ -59,7 +59,8 @@ def test_bullets_bold_headings_and_tables_in_docx():
         d.add_heading("Summary", level=1)
     solved = read_document(docx_edited(solve))
     assert check_lines_listed(solved, LINES).passed
-    assert check_paragraph_bold(solved, LINES[0]).passed and not check_paragraph_bold(solved, LINES[1]).passed
+    assert check_paragraph_bold(solved, LINES[0], LINES[1:]).passed and not check_paragraph_bold(solved, LINES[1]).passed
+    assert not check_paragraph_bold(solved, LINES[0], ["Gone"]).passed
     assert check_table(solved, 2, 2, ["Name", "Role"]).passed
     assert not check_table(solved, 2, 2, ["Role", "Name"]).passed
     assert check_heading(solved, "Summary", 1).passed
@@ -115,8 +116,9 @@ def test_sorting_totals_names_and_deleted_rows():
     assert not check_cell_aggregate(totals, "C12", "AVERAGE", "C2:C11").passed
     assert cell_at(totals, "A1") == "Name" and check_cell_equals(totals, "A1", "Name").passed
 
-    assert check_sheet_names(["Team List"], "Team List", "Sheet1").passed
-    assert not check_sheet_names(["Sheet1"], "Team List", "Sheet1").passed
+    assert check_sheet_names({"Team List": rows}, "Team List", "Sheet1", min_rows=11).passed
+    assert not check_sheet_names({"Sheet1": rows}, "Team List", "Sheet1").passed
+    assert not check_sheet_names({"Team List": rows[:1]}, "Team List", "Sheet1", min_rows=11).passed  # data lost
 
     assert not check_rows_without(rows, "Status", "cancelled", 7).passed
     kept = [r for r in rows if r[3] != "cancelled"]

@@ -1,5 +1,6 @@
-"""`jarvis qc`, the quality gate: on real devices a sound task passes, a task already solved by its set-up and a
-task whose oracle does not solve it are both violations with their reasons, and the exit status says so."""
+"""`jarvis qc`, the quality gate: on real devices a sound task passes; a task already solved by its set-up, one
+with an evaluator that holds before anything is done (while another fails), and one whose oracle does not solve
+it are violations with their reasons, and the exit status says so."""
 
 from __future__ import annotations
 
@@ -38,6 +39,17 @@ def test_rows_name_the_violation():
     assert "1/3 instances pass" in render_table([qc_row(result("passed", False, True)), solved, broken])
 
 
+def test_one_evaluator_holding_on_the_fresh_device_is_a_violation():
+    fresh = SubtaskVerdict(index=0, template="t", platform="ubuntu", passed=False, evaluators=[
+        EvaluatorVerdict(func="file_text_equals", passed=False, reason="expected hello, found no file"),
+        EvaluatorVerdict(func="file_exists", passed=True, reason="expected a file at x, found it")])
+    res = TaskResult(task_id="ubuntu-x[seed0]", category="atomic", platforms=["ubuntu"], instruction="i",
+                     status="failed", qc_initial=[fresh], subtasks=[verdict(True)])
+    row = qc_row(res)
+    assert (row["fresh"], row["gate"]) == ("PASS", "VIOLATED")
+    assert row["reason"].startswith("passes untouched: file_exists: expected a file at x")
+
+
 def test_generators_make_files_and_reject_bad_input():
     assert generate("text_lines", {"lines": ["a", "b"]}) == b"a\nb\n"
     with pytest.raises(ConfigError, match="unknown file generator 'nope'"):
@@ -55,9 +67,10 @@ def test_qc_on_real_devices_finds_both_kinds_of_violation(device_images, tmp_pat
     out = proc.stdout
     assert proc.returncode == 1, out[-3000:] + proc.stderr[-2000:]
     rows = {line.split("|")[1].strip(): line for line in out.splitlines() if line.startswith("| ubuntu-qc-")}
-    assert len(rows) == 6, out[-3000:]
+    assert len(rows) == 8, out[-3000:]
     assert all("| fail | pass | ok |" in rows[f"ubuntu-qc-good[seed{i}]"] for i in (0, 1))
     assert "| PASS | pass | VIOLATED | passes untouched" in rows["ubuntu-qc-already_solved[seed0]"]
     assert "| fail | FAIL | VIOLATED | oracle fails: file_text_equals" in rows["ubuntu-qc-oracle_fails[seed0]"]
-    assert "2/6 instances pass the quality gate" in out
-    assert (tmp_path / "qc" / "qc.md").read_text().count("VIOLATED") == 4
+    assert "| PASS | pass | VIOLATED | passes untouched: file_exists" in rows["ubuntu-qc-guard_holds[seed1]"]
+    assert "2/8 instances pass the quality gate" in out
+    assert (tmp_path / "qc" / "qc.md").read_text().count("VIOLATED") == 6

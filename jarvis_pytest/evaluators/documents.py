@@ -199,22 +199,39 @@ def check_lines_listed(doc: Document, lines: list[str]) -> Verdict:
 
 
 @evaluator("document_lines_listed")
-def document_lines_listed(state: FinalState, path: str, lines: list[str], platform: str | None = None) -> Verdict:
+def document_lines_listed(state: FinalState, path: str, lines: list[str], kind: str | None = None,
+                          platform: str | None = None) -> Verdict:
+    """Every line of `lines` is a list item of the document (of `kind`: odt or docx, when given)."""
     return _with_document(state, path, platform, f"{path} with its lines in a list",
-                          lambda doc: check_lines_listed(doc, lines))
+                          lambda doc: _of_kind(doc, kind) or check_lines_listed(doc, lines))
 
 
-def check_paragraph_bold(doc: Document, text: str) -> Verdict:
+def _of_kind(doc: Document, kind: str | None) -> Verdict | None:
+    """A failed verdict when the document is not of `kind` (e.g. saved as .odt under a .docx name)."""
+    if kind and doc.kind != kind:
+        return Verdict.check(False, f"a .{kind} document", f"a .{doc.kind} document")
+    return None
+
+
+def check_paragraph_bold(doc: Document, text: str, others: list[str] | None = None) -> Verdict:
+    """The paragraph `text` is bold, and the paragraphs `others` are still there and not bold."""
+    want = f"the paragraph {text!r} in bold" + (f", the {len(others)} others kept and not bold" if others else "")
     para = doc.find(text)
     if para is None:
-        return Verdict.check(False, f"the paragraph {text!r} in bold", "no such paragraph")
-    return Verdict.check(para.bold, f"the paragraph {text!r} in bold",
-                         "bold" if para.bold else f"not bold (style {para.style or 'default'})")
+        return Verdict.check(False, want, "no such paragraph")
+    missing = [o for o in others or [] if doc.find(o) is None]
+    bolded = [o for o in others or [] if doc.find(o) is not None and doc.find(o).bold]
+    if missing or bolded:
+        return Verdict.check(False, want, f"missing {missing!r}" if missing else f"also bold: {bolded!r}")
+    return Verdict.check(para.bold, want, "bold" if para.bold else f"not bold (style {para.style or 'default'})")
 
 
 @evaluator("document_paragraph_bold")
-def document_paragraph_bold(state: FinalState, path: str, text: str, platform: str | None = None) -> Verdict:
-    return _with_document(state, path, platform, f"{text!r} in bold", lambda doc: check_paragraph_bold(doc, text))
+def document_paragraph_bold(state: FinalState, path: str, text: str, others: list[str] | None = None,
+                            kind: str | None = None, platform: str | None = None) -> Verdict:
+    """The paragraph `text` is bold and only it, of `others` (in a document of `kind`, when given)."""
+    return _with_document(state, path, platform, f"{text!r} in bold",
+                          lambda doc: _of_kind(doc, kind) or check_paragraph_bold(doc, text, others))
 
 
 def check_document_text(doc: Document, contains: list[str], absent: list[str]) -> Verdict:
@@ -234,9 +251,7 @@ def document_text_has(state: FinalState, path: str, contains: list[str] | None =
                       platform: str | None = None) -> Verdict:
     """The document (.odt/.docx, of `kind` when given) contains every text of `contains` and none of `absent`."""
     def check(doc: Document) -> Verdict:
-        if kind and doc.kind != kind:
-            return Verdict.check(False, f"a .{kind} document", f"a .{doc.kind} document")
-        return check_document_text(doc, contains or [], absent or [])
+        return _of_kind(doc, kind) or check_document_text(doc, contains or [], absent or [])
     return _with_document(state, path, platform, f"{path} with the right text", check)
 
 
@@ -308,8 +323,9 @@ def document_same_text(state: FinalState, path: str, reference: str, kind: str |
                        platform: str | None = None) -> Verdict:
     """`path` is a document (of `kind`, when given) with the same non-empty paragraphs as `reference`."""
     def check(doc: Document, source: list[str]) -> Verdict:
-        if kind and doc.kind != kind:
-            return Verdict.check(False, f"a .{kind} document", f"a .{doc.kind} document")
+        wrong = _of_kind(doc, kind)
+        if wrong:
+            return wrong
         got = [norm(p.text) for p in doc.paragraphs if norm(p.text)]
         return Verdict.check(got == source, f"the {len(source)} paragraphs of {reference}",
                              f"{len(got)} paragraphs" + ("" if got == source else f", first {got[:2]!r}"))

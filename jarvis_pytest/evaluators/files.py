@@ -23,9 +23,13 @@ def file_exists(state: FinalState, path: str, platform: str | None = None) -> Ve
 
 
 @evaluator("file_absent")
-def file_absent(state: FinalState, path: str, platform: str | None = None) -> Verdict:
-    ok = not state.exists(path, platform)
-    return Verdict.check(ok, f"no file at {path}", "none" if ok else "a file")
+def file_absent(state: FinalState, path: str, kept: list[str] | None = None, platform: str | None = None) -> Verdict:
+    """No file at `path` (deleted, moved or trashed), while every file of `kept` is still there."""
+    gone = not state.exists(path, platform)
+    lost = [k for k in kept or [] if not state.exists(k, platform)]
+    want = f"no file at {path}" + (f" and the {len(kept)} other file(s) kept" if kept else "")
+    found = ("none" if gone else "a file") + (f"; lost {lost!r}" if lost else "")
+    return Verdict.check(gone and not lost, want, found)
 
 
 @evaluator("file_text_equals")
@@ -96,9 +100,14 @@ def check_line_endings(data: bytes, ending: str) -> Verdict:
 
 
 @evaluator("file_line_endings")
-def file_line_endings(state: FinalState, path: str, ending: str, platform: str | None = None) -> Verdict:
-    return judge_file(state, path, f"{path} with {ending.upper()} line ends", bytes,
-                      lambda data: check_line_endings(data, ending.lower()), platform)
+def file_line_endings(state: FinalState, path: str, ending: str, contains: str | None = None,
+                      platform: str | None = None) -> Verdict:
+    """Every line of `path` ends with `ending` (crlf or lf), and its text still contains `contains`."""
+    def check(data: bytes) -> Verdict:
+        if contains is not None and str(contains) not in as_text(data):
+            return Verdict.check(False, f"{path} still containing {_short(str(contains))}", _short(as_text(data)))
+        return check_line_endings(data, ending.lower())
+    return judge_file(state, path, f"{path} with {ending.upper()} line ends", bytes, check, platform)
 
 
 def check_last_line(text: str, expected: str, previous: list[str] | None = None) -> Verdict:

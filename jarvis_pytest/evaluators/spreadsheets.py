@@ -190,18 +190,22 @@ def sheet_cell_aggregate(state: FinalState, path: str, cell: str, function: str,
                           lambda kind, sheets: check_cell_aggregate(_first(sheets), cell, function, cells))
 
 
-def check_sheet_names(names: list[str], present: str, absent: str | None) -> Verdict:
-    ok = present in names and (absent is None or absent not in names)
-    return Verdict.check(ok, f"a sheet named {present!r}" + (f" and none named {absent!r}" if absent else ""),
-                         f"sheets {names!r}")
+def check_sheet_names(sheets: Sheets, present: str, absent: str | None, min_rows: int = 0) -> Verdict:
+    """A sheet named `present` with at least `min_rows` rows (its data kept), and none named `absent`."""
+    names = list(sheets)
+    rows = len(sheets.get(present, []))
+    ok = present in names and (absent is None or absent not in names) and rows >= int(min_rows)
+    want = f"a sheet named {present!r}" + (f" with its {min_rows} rows" if min_rows else "") + \
+        (f" and none named {absent!r}" if absent else "")
+    return Verdict.check(ok, want, f"sheets {names!r}" + (f", {rows} rows in {present!r}" if present in names else ""))
 
 
 @evaluator("sheet_names_are")
-def sheet_names_are(state: FinalState, path: str, present: str, absent: str | None = None,
+def sheet_names_are(state: FinalState, path: str, present: str, absent: str | None = None, min_rows: int = 0,
                     platform: str | None = None) -> Verdict:
-    """The workbook has a sheet named `present` (and none named `absent`)."""
+    """The workbook has a sheet named `present` holding at least `min_rows` rows (and none named `absent`)."""
     return _with_workbook(state, path, platform, f"a sheet named {present!r}",
-                          lambda kind, sheets: check_sheet_names(list(sheets), present, absent))
+                          lambda kind, sheets: check_sheet_names(sheets, present, absent, min_rows))
 
 
 def check_same_data(kind: str, rows: list[list[object]], want_kind: str | None, ref: list[list[object]]) -> Verdict:

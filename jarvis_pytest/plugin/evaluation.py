@@ -48,12 +48,14 @@ def failure_message(verdicts: list[SubtaskVerdict], end_reason: str, steps: int)
 
 
 def qc_message(result: TaskResult) -> str:
-    """The quality-gate message: subtasks already solved before the oracle ran, and subtasks the oracle failed."""
+    """The quality-gate message: evaluators that already pass before the oracle ran, and subtasks the oracle
+    failed."""
     lines = []
     for v in result.qc_initial or []:
-        if v.passed:
-            lines.append(f"subtask {v.index} {v.template}: its evaluators pass on the untouched device "
-                         f"({'; '.join(f'{e.func}: {e.reason}' for e in v.evaluators)})")
+        held = [e for e in v.evaluators if e.passed]
+        if held:
+            lines.append(f"subtask {v.index} {v.template}: evaluators pass on the untouched device "
+                         f"({'; '.join(f'{e.func}: {e.reason}' for e in held)})")
     if not all(s.passed for s in result.subtasks) or not result.subtasks:
         lines.append("the oracle did not solve the task: "
                      + failure_message(result.subtasks, result.end_reason, result.steps))

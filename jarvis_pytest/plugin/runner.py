@@ -51,10 +51,11 @@ def task_platforms(task: dict[str, Any]) -> tuple[str, ...]:
 
 
 def _passed(result: TaskResult) -> bool:
-    """Every subtask passed; under the quality gate also every subtask failed on the freshly set-up devices."""
+    """Every subtask passed; under the quality gate also every evaluator failed on the freshly set-up devices
+    (a check that holds before the agent acts proves nothing about what it did)."""
     passed = bool(result.subtasks) and all(s.passed for s in result.subtasks)
     if result.qc_initial is not None:
-        passed = passed and not any(s.passed for s in result.qc_initial)
+        passed = passed and not any(e.passed for s in result.qc_initial for e in s.evaluators)
     return passed
 
 

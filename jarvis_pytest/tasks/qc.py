@@ -21,9 +21,11 @@ REPO_ROOT = Path(__file__).resolve().parents[2]
 
 
 def _state(verdicts: list[SubtaskVerdict] | None, want: bool) -> str:
+    """"pass"/"fail" when every subtask (want=True) passed or every evaluator (want=False) failed, else the
+    violation in capitals."""
     if not verdicts:
         return "-"
-    good = all(v.passed == want for v in verdicts)
+    good = all(v.passed for v in verdicts) if want else not any(e.passed for v in verdicts for e in v.evaluators)
     return ("pass" if want else "fail") if good else ("FAIL" if want else "PASS")
 
 
@@ -37,10 +39,10 @@ def qc_row(result: TaskResult) -> dict[str, str]:
     if result.status == "error":
         reason = (result.error or "error").splitlines()[0]
     elif not ok:
-        bad = [e for v in (result.qc_initial or []) if v.passed for e in v.evaluators]
+        bad = [e for v in (result.qc_initial or []) for e in v.evaluators if e.passed]
         bad_after = [e for v in result.subtasks if not v.passed for e in v.evaluators if not e.passed]
         if bad:
-            reason = "passes untouched: " + bad[0].reason
+            reason = "passes untouched: " + bad[0].func + ": " + bad[0].reason
         elif bad_after:
             reason = "oracle fails: " + bad_after[0].func + ": " + bad_after[0].reason
     return {"task": result.task_id, "fresh": before, "oracle": after, "gate": "ok" if ok else
