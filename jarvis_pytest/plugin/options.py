@@ -45,7 +45,7 @@ def addoption(parser: pytest.Parser) -> None:
                 help="the network drive's server: copyparty (offline default, built here) or alist (an AList/"
                 "OpenList image pulled from a registry, $JARVIS_ALIST_IMAGE); default $JARVIS_TRANSFER or copyparty")
     g.addoption("--qc", action="store_true", help="quality gate of the tasks: evaluate right after set-up (every "
-                "subtask must fail), run the oracle, evaluate again (every subtask must pass); implies --agent oracle")
+                "evaluator must fail), run the oracle, evaluate again (every subtask must pass); implies --agent oracle")
 
 
 @dataclass
