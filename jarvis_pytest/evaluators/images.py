@@ -1,9 +1,10 @@
-"""Image checks, read with Pillow on the host: brightness, size, file format, grayscale, and geometric or colour
-transformations of a reference image (flips, rotations, inversion, borders)."""
+"""Image checks, read with Pillow on the host: brightness, size, file format, JPEG quality, grayscale, and geometric
+or colour transformations of a reference image (flips, rotations, inversion, borders, side by side)."""
 
 from __future__ import annotations
 
 import io
+from typing import Callable
 
 from PIL import Image, ImageChops, ImageOps, ImageStat
 
@@ -21,6 +22,10 @@ TRANSFORMS = {
     "grayscale": lambda im: ImageOps.grayscale(im).convert("RGB"),
     "identity": lambda im: im,
 }
+TRANSFORM_WORDS = {"flip_horizontal": "flipped horizontally", "flip_vertical": "flipped vertically",
+                   "rotate_90": "rotated 90° clockwise", "rotate_180": "rotated 180°",
+                   "rotate_270": "rotated 270° clockwise", "invert": "inverted", "grayscale": "in grayscale",
+                   "identity": "unchanged"}
 
 
 def open_image(data: bytes | None) -> Image.Image | None:
@@ -35,8 +40,20 @@ def open_image(data: bytes | None) -> Image.Image | None:
         return None
 
 
-def _open(state: FinalState, path: str, platform: str | None) -> Image.Image | None:
-    return open_image(state.pull(path, platform))
+def judge_images(state: FinalState, paths: list[str], want: str, check: Callable[..., Verdict],
+                 platform: str | None = None) -> Verdict:
+    """Pull and decode every file of `paths` and `check(*images)`; a missing file or one that is no image is a
+    failed verdict naming it."""
+    images = []
+    for path in paths:
+        data = state.pull(path, platform)
+        if data is None:
+            return Verdict.check(False, want, f"no file at {path}")
+        img = open_image(data)
+        if img is None:
+            return Verdict.check(False, want, f"{path} is no readable image ({len(data)} bytes)")
+        images.append(img)
+    return check(*images)
 
 
 def mean_luma(img: Image.Image) -> float:
@@ -51,18 +68,22 @@ def mean_difference(a: Image.Image, b: Image.Image) -> float:
     return sum(ImageStat.Stat(ImageChops.difference(a, b)).mean) / 3
 
 
-@evaluator("image_brighter")
-def image_brighter(state: FinalState, path: str, reference: str, min_ratio: float = 1.1,
-                   platform: str | None = None) -> Verdict:
-    """`path` is an image whose mean brightness is at least `min_ratio` × that of `reference`."""
-    img, ref = _open(state, path, platform), _open(state, reference, platform)
+def check_brighter(img: Image.Image | None, ref: Image.Image | None, min_ratio: float = 1.1) -> Verdict:
+    """The mean brightness of `img` is at least `min_ratio` × that of `ref`."""
     if img is None or ref is None:
-        missing = path if img is None else reference
-        return Verdict.check(False, f"{path} brighter than {reference}", f"no readable image at {missing}")
+        return Verdict.check(False, "an image brighter than the reference", "no readable image")
     a, b = mean_luma(img), mean_luma(ref)
     ratio = a / b if b else float("inf")
     return Verdict.check(ratio >= float(min_ratio), f"mean brightness ≥ {float(min_ratio):.2f} × {b:.1f}",
                          f"{a:.1f} ({ratio:.2f} ×)")
+
+
+@evaluator("image_brighter")
+def image_brighter(state: FinalState, path: str, reference: str, min_ratio: float = 1.1,
+                   platform: str | None = None) -> Verdict:
+    """`path` is an image whose mean brightness is at least `min_ratio` × that of `reference`."""
+    return judge_images(state, [path, reference], f"{path} brighter than {reference}",
+                        lambda img, ref: check_brighter(img, ref, float(min_ratio)), platform)
 
 
 def check_size(img: Image.Image | None, width: int, height: int, tolerance: int = 0) -> Verdict:
@@ -75,7 +96,8 @@ def check_size(img: Image.Image | None, width: int, height: int, tolerance: int 
 @evaluator("image_size_is")
 def image_size_is(state: FinalState, path: str, width: int, height: int, tolerance: int = 0,
                   platform: str | None = None) -> Verdict:
-    return check_size(_open(state, path, platform), width, height, int(tolerance))
+    return judge_images(state, [path], f"a {width}×{height} image at {path}",
+                        lambda img: check_size(img, int(width), int(height), int(tolerance)), platform)
 
 
 def check_scaled(img: Image.Image | None, ref: Image.Image | None, percent: float | None = None,
@@ -96,7 +118,8 @@ def image_scaled_from(state: FinalState, path: str, reference: str, percent: flo
     """`path` is `reference` scaled by `percent` % or to `width` pixels wide, aspect ratio kept."""
     if (percent is None) == (width is None):
         return Verdict(False, "image_scaled_from needs exactly one of `percent` and `width`")
-    return check_scaled(_open(state, path, platform), _open(state, reference, platform), percent, width)
+    return judge_images(state, [path, reference], f"{reference} scaled at {path}",
+                        lambda img, ref: check_scaled(img, ref, percent, width), platform)
 
 
 def check_format(img: Image.Image | None, fmt: str) -> Verdict:
@@ -108,7 +131,8 @@ def check_format(img: Image.Image | None, fmt: str) -> Verdict:
 
 @evaluator("image_format_is")
 def image_format_is(state: FinalState, path: str, format: str, platform: str | None = None) -> Verdict:
-    return check_format(_open(state, path, platform), format)
+    return judge_images(state, [path], f"a {format.upper()} image at {path}",
+                        lambda img: check_format(img, format), platform)
 
 
 def check_transformed(img: Image.Image | None, ref: Image.Image | None, transform: str,
@@ -116,7 +140,7 @@ def check_transformed(img: Image.Image | None, ref: Image.Image | None, transfor
     """`img` looks like `ref` after `transform` (one of TRANSFORMS): the mean difference from the expected image
     is at most `max_difference` and clearly less than from the untransformed reference (so an untouched copy
     fails)."""
-    want = f"the reference {transform.replace('_', ' ')}"
+    want = f"the reference {TRANSFORM_WORDS[transform]}"
     if img is None or ref is None:
         return Verdict.check(False, want, "no readable image" if img is None else "no readable reference")
     ref = ref.convert("RGB")
@@ -127,7 +151,8 @@ def check_transformed(img: Image.Image | None, ref: Image.Image | None, transfor
     to_original = mean_difference(img, ref) if transform != "identity" else float("inf")
     ok = to_expected <= float(max_difference) and to_expected < to_original / 2
     return Verdict.check(ok, f"{want} (mean difference ≤ {float(max_difference):g})",
-                         f"difference {to_expected:.1f} from it, {to_original:.1f} from the reference as it was")
+                         f"difference {to_expected:.1f} from it" + ("" if transform == "identity" else
+                                                                    f", {to_original:.1f} from the reference as it was"))
 
 
 @evaluator("image_transformed_from")
@@ -136,8 +161,8 @@ def image_transformed_from(state: FinalState, path: str, reference: str, transfo
     """`path` is `reference` flipped / rotated / inverted / made grayscale (see TRANSFORMS)."""
     if transform not in TRANSFORMS:
         return Verdict(False, f"unknown transform {transform!r} (use one of {sorted(TRANSFORMS)})")
-    return check_transformed(_open(state, path, platform), _open(state, reference, platform), transform,
-                             float(max_difference))
+    return judge_images(state, [path, reference], f"{reference} {TRANSFORM_WORDS[transform]} at {path}",
+                        lambda img, ref: check_transformed(img, ref, transform, float(max_difference)), platform)
 
 
 def check_grayscale(img: Image.Image | None, tolerance: int = 6) -> Verdict:
@@ -155,7 +180,7 @@ def check_grayscale(img: Image.Image | None, tolerance: int = 6) -> Verdict:
 
 @evaluator("image_is_grayscale")
 def image_is_grayscale(state: FinalState, path: str, platform: str | None = None) -> Verdict:
-    return check_grayscale(_open(state, path, platform))
+    return judge_images(state, [path], f"a grayscale image at {path}", check_grayscale, platform)
 
 
 def hex_rgb(color: str) -> tuple[int, int, int]:
@@ -184,7 +209,8 @@ def check_border(img: Image.Image | None, ref: Image.Image | None, width: int, c
 @evaluator("image_has_border")
 def image_has_border(state: FinalState, path: str, reference: str, width: int, color: str,
                      platform: str | None = None) -> Verdict:
-    return check_border(_open(state, path, platform), _open(state, reference, platform), int(width), color)
+    return judge_images(state, [path, reference], f"{reference} with a {width}px {color} border at {path}",
+                        lambda img, ref: check_border(img, ref, int(width), color), platform)
 
 
 def check_side_by_side(img: Image.Image | None, left: Image.Image | None, right: Image.Image | None) -> Verdict:
@@ -202,4 +228,57 @@ def check_side_by_side(img: Image.Image | None, left: Image.Image | None, right:
 
 @evaluator("image_side_by_side")
 def image_side_by_side(state: FinalState, path: str, left: str, right: str, platform: str | None = None) -> Verdict:
-    return check_side_by_side(*(_open(state, p, platform) for p in (path, left, right)))
+    return judge_images(state, [path, left, right], f"{left} and {right} side by side at {path}",
+                        check_side_by_side, platform)
+
+
+# The IJG (libjpeg) standard luminance quantization table, which libjpeg scales by the quality setting; GIMP,
+# ImageMagick and Pillow all write JPEGs with it unless told otherwise.
+IJG_LUMINANCE = [16, 11, 10, 16, 24, 40, 51, 61, 12, 12, 14, 19, 26, 58, 60, 55, 14, 13, 16, 24, 40, 57, 69, 56,
+                 14, 17, 22, 29, 51, 87, 80, 62, 18, 22, 37, 56, 68, 109, 103, 77, 24, 35, 55, 64, 81, 104, 113, 92,
+                 49, 64, 78, 87, 103, 121, 120, 101, 72, 92, 95, 98, 112, 100, 103, 99]
+
+
+def ijg_table(quality: int) -> list[int]:
+    """The luminance table libjpeg's jpeg_set_quality(`quality`, force_baseline) writes."""
+    q = min(max(int(quality), 1), 100)
+    scale = 5000 // q if q < 50 else 200 - 2 * q
+    return [min(max((v * scale + 50) // 100, 1), 255) for v in IJG_LUMINANCE]
+
+
+def estimate_jpeg_quality(img: Image.Image) -> tuple[int, int] | None:
+    """(quality, distance): the libjpeg quality setting whose luminance table is closest to the file's (distance 0
+    for a file written with the standard tables), or None when the image is no JPEG. Values are compared sorted,
+    so the order the tables are stored in (zigzag or natural) does not matter."""
+    tables = getattr(img, "quantization", None)
+    if (img.format or "").upper() != "JPEG" or not tables:
+        return None
+    table = sorted(tables[min(tables)])
+    return min(((q, sum(abs(a - b) for a, b in zip(table, sorted(ijg_table(q))))) for q in range(1, 101)),
+               key=lambda qd: (qd[1], -qd[0]))
+
+
+def quality_words(minimum: int, maximum: int) -> str:
+    return f"a JPEG of quality {minimum}" if minimum == maximum else f"a JPEG of quality {minimum}–{maximum}"
+
+
+def check_jpeg_quality(img: Image.Image | None, minimum: int, maximum: int) -> Verdict:
+    """The file is a real JPEG saved at a quality setting between `minimum` and `maximum` (estimated from its
+    quantization tables, as `identify -format %Q` does)."""
+    want = quality_words(minimum, maximum)
+    if img is None:
+        return Verdict.check(False, want, "no readable image")
+    estimate = estimate_jpeg_quality(img)
+    if estimate is None:
+        return Verdict.check(False, want, f"a {img.format} image")
+    q, distance = estimate
+    approx = "" if distance == 0 else f" (non-standard tables, nearest standard quality, off by {distance})"
+    return Verdict.check(int(minimum) <= q <= int(maximum) and distance <= 64, want, f"quality {q}{approx}")
+
+
+@evaluator("image_jpeg_quality")
+def image_jpeg_quality(state: FinalState, path: str, minimum: int, maximum: int,
+                       platform: str | None = None) -> Verdict:
+    """`path` is a JPEG (by its bytes, not its name) saved at a quality between `minimum` and `maximum`."""
+    return judge_images(state, [path], f"{quality_words(int(minimum), int(maximum))} at {path}",
+                        lambda img: check_jpeg_quality(img, int(minimum), int(maximum)), platform)

@@ -39,6 +39,11 @@ def cell_value(value: object) -> object:
         return text
 
 
+def _text(value: object) -> object:
+    """Text with its runs of white space made one space (other values as they are)."""
+    return " ".join(value.split()) if isinstance(value, str) else value
+
+
 def _trim(rows: list[list[object]]) -> list[list[object]]:
     rows = [list(r) for r in rows]
     for r in rows:
@@ -78,9 +83,13 @@ def read_workbook(data: bytes) -> tuple[str, Sheets]:
     return kind, {"csv": _trim([[cell_value(v) for v in row] for row in csv.reader(io.StringIO(text))])}
 
 
+MAX_REPEAT = 10_000  # a value repeated further than this (a filled whole row or column) is cut here
+
+
 def _read_ods(data: bytes) -> Sheets:
-    from odf import teletype
-    from odf.namespaces import OFFICENS, TABLENS
+    """The sheets of an .ods file. Runs of empty rows and cells (LibreOffice writes the unused rest of a sheet as
+    one row repeated a million times) are kept as gaps only when data follows them, so references stay right."""
+    from odf.namespaces import TABLENS
     from odf.opendocument import load
     from odf.table import Table, TableRow
 
@@ -88,22 +97,42 @@ def _read_ods(data: bytes) -> Sheets:
     sheets: Sheets = {}
     for table in doc.spreadsheet.getElementsByType(Table):
         rows: list[list[object]] = []
+        empty_rows = 0
         for tr in table.getElementsByType(TableRow):
             row: list[object] = []
+            empty_cells = 0
             for cell in tr.childNodes:
                 if cell.qname[1] not in ("table-cell", "covered-table-cell"):
                     continue
                 repeat = int(cell.attributes.get((TABLENS, "number-columns-repeated"), 1))
-                vtype = cell.attributes.get((OFFICENS, "value-type"))
-                if vtype in ("float", "percentage", "currency"):
-                    value = cell_value(float(cell.attributes.get((OFFICENS, "value"))))
-                else:
-                    value = cell_value(teletype.extractText(cell)) if vtype else None
-                row.extend([value] * min(repeat, 1024))
+                value = _ods_cell(cell)
+                if value is None:
+                    empty_cells += repeat
+                    continue
+                row.extend([None] * empty_cells + [value] * min(repeat, MAX_REPEAT))
+                empty_cells = 0
             repeat_rows = int(tr.attributes.get((TABLENS, "number-rows-repeated"), 1))
-            rows.extend([row] * min(repeat_rows, 1024))
+            if not row:
+                empty_rows += repeat_rows
+                continue
+            rows.extend([[] for _ in range(empty_rows)] + [list(row) for _ in range(min(repeat_rows, MAX_REPEAT))])
+            empty_rows = 0
         sheets[table.getAttribute("name")] = _trim(rows)
     return sheets
+
+
+def _ods_cell(cell) -> object:
+    """A cell's value: the number it holds (a formula's too, as LibreOffice caches it), else its paragraphs' text
+    (not a comment's)."""
+    from odf import teletype
+    from odf.namespaces import OFFICENS
+
+    vtype = cell.attributes.get((OFFICENS, "value-type"))
+    if vtype in ("float", "percentage", "currency"):
+        return cell_value(float(cell.attributes.get((OFFICENS, "value"))))
+    if not vtype:
+        return None
+    return cell_value("\n".join(teletype.extractText(p) for p in cell.childNodes if p.qname[1] == "p"))
 
 
 def cell_at(rows: list[list[object]], ref: str) -> object:
@@ -140,6 +169,25 @@ def _fmt(v: object) -> str:
 
 
 # -- checks --------------------------------------------------------------------------------------------------
+def _sort_key(value: object) -> tuple:
+    """Numbers before text (text case-insensitively, as Calc sorts it), empty cells last."""
+    if value is None:
+        return (2, 0.0, "")
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return (0, float(value), "")
+    return (1, 0.0, str(value).casefold())
+
+
+def descending_order(order: str) -> bool:
+    """True for "descending"/"decreasing", False for "ascending"/"increasing"."""
+    word = str(order).strip().lower()
+    if word in ("descending", "decreasing", "desc"):
+        return True
+    if word in ("ascending", "increasing", "asc"):
+        return False
+    raise ValueError(f"unknown sort order {order!r}: use ascending, increasing, descending or decreasing")
+
+
 def check_sorted_from(rows: list[list[object]], ref: list[list[object]], column: str, descending: bool) -> Verdict:
     """`rows` are the rows of `ref` (same header, same data rows) sorted by the column headed `column`."""
     want = f"the rows of the original sorted by {column} ({'descending' if descending else 'ascending'})"
@@ -150,35 +198,47 @@ def check_sorted_from(rows: list[list[object]], ref: list[list[object]], column:
     i = ref[0].index(column)
     data = rows[1:]
     if sorted(map(repr, data)) != sorted(map(repr, ref[1:])):
-        return Verdict.check(False, want, f"{len(data)} rows that differ from the original's {len(ref) - 1}")
+        missing = next((r for r in ref[1:] if r not in data), None)
+        return Verdict.check(False, want, f"{len(data)} data rows that are not the original's {len(ref) - 1}"
+                             + (f" (no row {missing!r})" if missing else ""))
     keys = [r[i] if i < len(r) else None for r in data]
-    ok = keys == sorted(keys, key=lambda k: (k is None, k), reverse=bool(descending))
+    ok = [_sort_key(k) for k in keys] == sorted(map(_sort_key, keys), reverse=bool(descending))
     return Verdict.check(ok, want, f"{column} in the order {[_fmt(k) for k in keys][:12]}")
 
 
 @evaluator("sheet_sorted_from")
 def sheet_sorted_from(state: FinalState, path: str, reference: str, column: str, order: str = "ascending",
-                      platform: str | None = None) -> Verdict:
-    """`path`'s first sheet holds the rows of `reference`'s first sheet sorted by `column` in `order`
-    ("ascending" or "descending")."""
-    descending = str(order).lower().startswith("desc")
-    return _compared_with(state, path, reference, platform, f"{path} sorted by {column}",
-                          lambda kind, rows, ref_rows: check_sorted_from(rows, ref_rows, column, descending))
+                      kind: str | None = None, platform: str | None = None) -> Verdict:
+    """`path` (of `kind` when given: xlsx, ods, csv) holds in its first sheet the rows of `reference`'s first
+    sheet sorted by `column` in `order` ("ascending"/"increasing" or "descending"/"decreasing")."""
+    descending = descending_order(order)
+
+    def check(k: str, rows: list[list[object]], ref_rows: list[list[object]]) -> Verdict:
+        if kind and k != kind:
+            return Verdict.check(False, f"a .{kind} spreadsheet", f"a .{k} file")
+        return check_sorted_from(rows, ref_rows, column, descending)
+
+    return _compared_with(state, path, reference, platform, f"{path} sorted by {column}", check)
+
+
+AGGREGATES = {"SUM": sum, "AVERAGE": lambda xs: sum(xs) / len(xs), "MAX": max, "MIN": min}
 
 
 def check_cell_aggregate(rows: list[list[object]], cell: str, function: str, cells: str) -> Verdict:
-    """The value at `cell` equals the SUM/AVERAGE/MAX/MIN of the numbers in the range `cells` (e.g. C2:C11)."""
-    start, _, end = cells.partition(":")
-    col = re.match(r"[A-Za-z]+", start).group(0)
-    first, last = int(start[len(col):]), int(end[len(col):])
-    values = [cell_at(rows, f"{col}{r}") for r in range(first, last + 1)]
-    numbers = [v for v in values if isinstance(v, float)]
+    """The value at `cell` equals the SUM/AVERAGE/MAX/MIN of the numbers in the column range `cells` (e.g.
+    C2:C11), whether it was typed in (rounded to 2 decimals is enough) or is a formula whose value LibreOffice
+    cached in the file."""
+    m = re.fullmatch(r"\s*([A-Za-z]+)(\d+)\s*:\s*\1(\d+)\s*", cells, re.IGNORECASE)
+    if not m or function.upper() not in AGGREGATES:
+        raise ValueError(f"need a one-column range such as C2:C11 and one of {sorted(AGGREGATES)}, "
+                         f"not {function!r} of {cells!r}")
+    col, first, last = m.group(1), int(m.group(2)), int(m.group(3))
+    numbers = [v for v in (cell_at(rows, f"{col}{r}") for r in range(first, last + 1)) if isinstance(v, float)]
     if not numbers:
-        return Verdict.check(False, f"{cell} = {function}({cells})", f"no numbers in {cells}")
-    want = {"SUM": sum(numbers), "AVERAGE": sum(numbers) / len(numbers), "MAX": max(numbers),
-            "MIN": min(numbers)}[function.upper()]
+        return Verdict.check(False, f"{cell} = {function.upper()}({cells})", f"no numbers in {cells}")
+    want = AGGREGATES[function.upper()](numbers)
     got = cell_at(rows, cell)
-    ok = isinstance(got, float) and abs(got - want) <= 0.005  # a typed-in value rounded to 2 decimals
+    ok = isinstance(got, float) and abs(got - want) <= 0.005 + 1e-9
     return Verdict.check(ok, f"{cell} = {function.upper()}({cells}) = {want:g}", f"{cell} = {_fmt(got)}")
 
 
@@ -229,9 +289,9 @@ def check_rows_without(rows: list[list[object]], column: str, value: str, count:
     """No data row has `value` in the column headed `column`, and `count` data rows are left."""
     if not rows or column not in rows[0]:
         return Verdict.check(False, f"a column {column!r}", f"header {rows[0] if rows else None!r}")
-    i = rows[0].index(column)
+    i, want = rows[0].index(column), _text(cell_value(value))
     data = [r for r in rows[1:] if any(v is not None for v in r)]
-    hits = [r for r in data if i < len(r) and r[i] == value]
+    hits = [r for r in data if i < len(r) and _text(r[i]) == want]
     return Verdict.check(not hits and len(data) == int(count),
                          f"{count} data rows, none with {column} = {value!r}",
                          f"{len(data)} rows, {len(hits)} with it")
@@ -240,18 +300,24 @@ def check_rows_without(rows: list[list[object]], column: str, value: str, count:
 @evaluator("sheet_rows_without")
 def sheet_rows_without(state: FinalState, path: str, column: str, value: str, count: int,
                        platform: str | None = None) -> Verdict:
+    """In the first sheet no data row has `value` in the column headed `column`, and `count` data rows are left
+    (empty rows do not count)."""
     return _with_workbook(state, path, platform, f"no rows with {column} = {value!r}",
                           lambda kind, sheets: check_rows_without(_first(sheets), column, value, int(count)))
 
 
 def check_cell_equals(rows: list[list[object]], cell: str, expected: object) -> Verdict:
+    """`cell` holds `expected`: numbers compared as numbers, text with its runs of white space made one."""
     got, want = cell_at(rows, cell), cell_value(expected)
-    ok = got == want if not isinstance(want, float) else isinstance(got, float) and abs(got - want) < 1e-9
+    ok = _text(got) == _text(want) if not isinstance(want, float) else \
+        isinstance(got, float) and abs(got - want) < 1e-9
     return Verdict.check(ok, f"{cell} = {_fmt(want)}", f"{cell} = {_fmt(got)}")
 
 
 @evaluator("sheet_cell_equals")
-def sheet_cell_equals(state: FinalState, path: str, cell: str, expected: object, platform: str | None = None) -> Verdict:
-    """In the first sheet, `cell` holds `expected` (numbers compared as numbers, text trimmed)."""
+def sheet_cell_equals(state: FinalState, path: str, cell: str, expected: object,
+                      platform: str | None = None) -> Verdict:
+    """In the first sheet, `cell` holds `expected` (numbers compared as numbers, text with white space
+    normalised)."""
     return _with_workbook(state, path, platform, f"{cell} = {expected!r}",
                           lambda kind, sheets: check_cell_equals(_first(sheets), cell, expected))

@@ -45,12 +45,33 @@ def odt_document(paragraphs: list[str]) -> bytes:
         doc.text.addElement(P(text=text))
     buf = io.BytesIO()
     doc.write(buf)
-    return _fixed_zip_times(buf.getvalue())
+    return _fixed_zip_times(buf.getvalue(), odf=True)
 
 
-def _fixed_zip_times(data: bytes) -> bytes:
-    """The same package with every member's time fixed (and ODF's volatile meta dates dropped), so equal
-    arguments give equal bytes."""
+def _canonical_namespaces(body: bytes) -> bytes:
+    """The XML `body` with its root element declaring every namespace odfpy knows, sorted by prefix. odfpy
+    declares on each root the namespaces its process has met so far (a class-level dict shared by all
+    documents), so the same document would otherwise come out differently after another was built."""
+    import re
+
+    from odf.namespaces import nsdict
+
+    m = re.search(rb"<[A-Za-z][^>]*>", body)
+    if m is None:
+        return body
+    tag = m.group(0)
+    decls = dict(re.findall(rb'\sxmlns:([\w.-]+)="([^"]*)"', tag))
+    for uri, prefix in nsdict.items():
+        decls.setdefault(prefix.encode(), uri.encode())
+    bare = re.sub(rb'\sxmlns:[\w.-]+="[^"]*"', b"", tag)
+    end = re.match(rb"<[\w:.-]+", bare).end()
+    root = bare[:end] + b"".join(b' xmlns:%s="%s"' % (k, decls[k]) for k in sorted(decls)) + bare[end:]
+    return body[:m.start()] + root + body[m.end():]
+
+
+def _fixed_zip_times(data: bytes, odf: bool = False) -> bytes:
+    """The same package with every member's time fixed (and, for ODF, the volatile meta dates dropped and the
+    namespace declarations made canonical), so equal arguments give equal bytes."""
     import re
     import zipfile
 
@@ -61,6 +82,8 @@ def _fixed_zip_times(data: bytes) -> bytes:
             body = src.read(info.filename)
             if info.filename == "meta.xml":
                 body = re.sub(rb"<meta:(creation-date|generator)>[^<]*</meta:\1>", b"", body)
+            if odf and info.filename.endswith(".xml"):
+                body = _canonical_namespaces(body)
             fixed = zipfile.ZipInfo(info.filename, date_time=(2025, 1, 6, 9, 0, 0))
             fixed.compress_type = zipfile.ZIP_STORED if info.filename == "mimetype" else zipfile.ZIP_DEFLATED
             dst.writestr(fixed, body)
