@@ -75,9 +75,9 @@ def launch(device):
     """Launch an application for one test; its process (`process`, default the command) is ended after it."""
     processes: list[str] = []
 
-    def start(app: str, *args: str, process: str | None = None) -> None:
+    def start(app: str, *args: str, process: str | None = None, window_wait: float = 20.0) -> bool:
         processes.append(process or app)
-        device.launch(app, *args)
+        return device.launch(app, *args, window_wait=window_wait)
 
     yield start
     for name in processes:  # gone before the next test starts it again (a single-instance app would hand over)
@@ -256,6 +256,25 @@ def test_launch_shows_a_window(device, launch):
     assert window_box(device, "ristretto")[2] > 100
     with pytest.raises(Exception, match="no application 'nosuchapp'"):
         device.launch("nosuchapp")
+
+
+def test_launch_returns_once_the_window_is_there(device, launch):
+    """A launch answers when the application's window shows (not a splash screen), so the screenshot after it
+    shows the application; a file opened into a tab of an existing window counts by its changed title; a
+    program without a window makes it give up after the wait."""
+    shown = "xdotool search --onlyvisible --name . getwindowname %@"
+    assert launch("gimp", "/tmp/no_such_picture.png")
+    assert "GNU Image Manipulation Program" in device.run(shown, user="user").stdout  # at once: no polling here
+    device.run("touch /tmp/launch_a.txt /tmp/launch_b.txt", user="user")  # unmodified: nothing to restore later
+    assert launch("mousepad", "/tmp/launch_a.txt")
+    assert "launch_a.txt - Mousepad" in device.run(shown, user="user").stdout
+    assert launch("mousepad", "/tmp/launch_b.txt")
+    assert "launch_b.txt - Mousepad" in device.run(shown, user="user").stdout
+    device.run("pkill -x gimp-2.10; pkill -x gimp; true")
+    wait_for(lambda: "GIMP" not in device.run(shown, user="user").stdout, 20, "GIMP gone")
+    t0 = time.monotonic()
+    assert launch("sleep", "30", window_wait=1.0) is False
+    assert 1.0 <= time.monotonic() - t0 < 10
 
 
 def test_chromium_runs_without_background_networking_and_shows_pages_to_accessibility(device, launch):

@@ -55,4 +55,5 @@ class Device(Protocol):
 
     def run(self, command: str, *, timeout: float = 60.0, user: str | None = None) -> CommandResult: ...
 
-    def launch(self, app: str, *args: str) -> None: ...
+    def launch(self, app: str, *args: str, window_wait: float = 20.0) -> bool:
+        """Start an application; return once it shows a window (True) or after `window_wait` s (False)."""

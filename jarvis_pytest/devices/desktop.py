@@ -9,9 +9,12 @@ import httpx
 
 from jarvis_pytest.devices.actions import Action
 from jarvis_pytest.devices.base import ActionOutcome, CommandResult, Observation
-from jarvis_pytest.devices.protocol import (A11yTree, ActionResult, Health, LaunchRequest, RunRequest, RunResponse,
-                                            ScreenSize)
+from jarvis_pytest.devices.protocol import (A11yTree, ActionResult, Health, LaunchRequest, LaunchResponse, RunRequest,
+                                            RunResponse, ScreenSize)
 from jarvis_pytest.errors import InfrastructureError
+
+
+LAUNCH_WINDOW_WAIT = 20.0  # seconds `launch` waits for the application's window
 
 
 def png_size(png: bytes) -> tuple[int, int]:
@@ -98,10 +101,14 @@ class DesktopDevice:
         r = RunResponse.model_validate(self._ok(resp).json())
         return CommandResult(returncode=r.returncode, stdout=r.stdout, stderr=r.stderr)
 
-    def launch(self, app: str, *args: str) -> None:
-        req = LaunchRequest(app=app, args=list(args))
-        self._ok(self._request("POST", "/launch", content=req.model_dump_json(),
-                               headers={"Content-Type": "application/json"}))
+    def launch(self, app: str, *args: str, window_wait: float = LAUNCH_WINDOW_WAIT) -> bool:
+        """Start `app` with `args`; return once the desktop shows a new application window or an existing one
+        changed its title (True: the next screenshot shows the app), or after `window_wait` seconds without
+        either (False). Splash screens do not count. `window_wait=0` returns at once."""
+        req = LaunchRequest(app=app, args=list(args), window_wait=window_wait)
+        resp = self._request("POST", "/launch", content=req.model_dump_json(), timeout=window_wait + 30,
+                             headers={"Content-Type": "application/json"})
+        return LaunchResponse.model_validate(self._ok(resp).json()).window
 
     def close(self) -> None:
         self.http.close()

@@ -50,6 +50,13 @@ class RunResponse(_Model):
 class LaunchRequest(_Model):
     app: str = Field(min_length=1)
     args: list[str] = Field(default_factory=list)
+    window_wait: float = Field(default=0.0, ge=0.0, le=120.0,
+                               description="seconds to wait for a new application window or a changed title")
+
+
+class LaunchResponse(_Model):
+    ok: bool = True
+    window: bool = Field(default=False, description="a new window (or a changed title) showed within the wait")
 
 
 class ErrorResponse(_Model):

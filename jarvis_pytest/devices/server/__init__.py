@@ -15,5 +15,6 @@ Endpoints (JSON unless said; errors are 4xx/5xx `{"error": "..."}`):
   PUT  /files?path=/abs   body = bytes               written as the desktop user (root through sudo)
   GET  /files?path=/abs                              application/octet-stream
   POST /run       RunRequest                         RunResponse (returncode 124 on timeout)
-  POST /launch    LaunchRequest                      started detached in the session
+  POST /launch    LaunchRequest                      LaunchResponse; started detached in the session, with
+                                                     `window_wait` answered once its window shows
 """

@@ -12,7 +12,8 @@ from urllib.parse import parse_qs, urlsplit
 from pydantic import BaseModel, ValidationError
 
 from jarvis_pytest.devices import actions as A
-from jarvis_pytest.devices.protocol import A11yTree, ActionResult, Health, LaunchRequest, RunRequest, ScreenSize
+from jarvis_pytest.devices.protocol import (A11yTree, ActionResult, Health, LaunchRequest, LaunchResponse, RunRequest,
+                                            ScreenSize)
 from jarvis_pytest.devices.server import system
 
 MAX_BODY = 512 * 1024 * 1024
@@ -257,7 +258,10 @@ class Handler(BaseHTTPRequestHandler):
         self._json(200, system.run(req.command, req.user, req.timeout))
 
     def launch(self) -> None:
+        """Start an application; with `window_wait`, answer once the desktop shows a new application window or an
+        existing one changed its title (a file opened into a tab), so the next screenshot shows the app."""
         req = self._model(LaunchRequest)
+        before = DEVICES.screen.app_windows() if req.window_wait else {}
         try:
             system.launch(req.app, req.args)
         except FileNotFoundError:
@@ -265,7 +269,12 @@ class Handler(BaseHTTPRequestHandler):
                                  "e.g. mousepad, libreoffice, chromium, gimp, thunar)") from None
         except PermissionError:
             raise HttpError(400, f"{req.app!r} is not an executable") from None
-        self._json(200, {"ok": True})
+        deadline, shown = time.monotonic() + req.window_wait, False
+        while req.window_wait and not shown and time.monotonic() < deadline:
+            time.sleep(0.05)
+            now = DEVICES.screen.app_windows()
+            shown = any(before.get(wid) != title for wid, title in now.items())
+        self._json(200, LaunchResponse(window=shown))
 
 
 ROUTES = {

@@ -97,6 +97,29 @@ class Screen:
                     continue
         return classes
 
+    def app_windows(self) -> dict[int, str]:
+        """The viewable application windows the window manager manages, id → title; splash screens, docks and
+        the desktop do not count."""
+        atom = self.display.intern_atom
+        skip = {atom(f"_NET_WM_WINDOW_TYPE_{t}") for t in ("SPLASH", "DOCK", "DESKTOP")}
+        with self.lock:
+            prop = self.root.get_full_property(atom("_NET_CLIENT_LIST"), X.AnyPropertyType)
+            found: dict[int, str] = {}
+            for wid in prop.value if prop else ():
+                window = self.display.create_resource_object("window", wid)
+                try:
+                    if window.get_attributes().map_state != X.IsViewable:
+                        continue
+                    kind = window.get_full_property(atom("_NET_WM_WINDOW_TYPE"), X.AnyPropertyType)
+                    if kind and skip.intersection(kind.value):
+                        continue
+                    name = window.get_full_property(atom("_NET_WM_NAME"), atom("UTF8_STRING"))
+                    title = name.value if name else window.get_wm_name()
+                    found[wid] = title.decode("utf-8", "replace") if isinstance(title, bytes) else str(title or "")
+                except XError:  # the window went away meanwhile
+                    continue
+        return found
+
     def painted(self, min_stddev: float = 8.0) -> bool:
         """Whether the screen shows something (a desktop that is up but not yet drawn is one flat colour)."""
         small = self._raw().reduce(8).convert("L")
