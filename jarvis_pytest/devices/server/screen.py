@@ -11,6 +11,7 @@ from __future__ import annotations
 import struct
 import threading
 import zlib
+from typing import Any, Callable
 
 from PIL import Image, ImageGrab, ImageStat
 from Xlib import X, display
@@ -83,42 +84,41 @@ class Screen:
         img.paste(cursor, (x, y), cursor)
         return img
 
-    def managed_classes(self) -> set[str]:
-        """The WM classes of the viewable windows the window manager manages (EWMH `_NET_CLIENT_LIST`)."""
+    def _viewable_clients(self, describe: Callable[[Any], Any]) -> dict[int, Any]:
+        """`describe(window)` of every viewable window the window manager manages (EWMH `_NET_CLIENT_LIST`), by
+        id; windows that went away meanwhile, or that `describe` gives None for, are left out."""
+        found: dict[int, Any] = {}
         with self.lock:
             prop = self.root.get_full_property(self.display.intern_atom("_NET_CLIENT_LIST"), X.AnyPropertyType)
-            classes: set[str] = set()
             for wid in prop.value if prop else ():
                 window = self.display.create_resource_object("window", wid)
                 try:
                     if window.get_attributes().map_state == X.IsViewable:
-                        classes.update((window.get_wm_class() or ())[:1])
-                except XError:  # the window went away meanwhile
-                    continue
-        return classes
-
-    def app_windows(self) -> dict[int, str]:
-        """The viewable application windows the window manager manages, id → title; splash screens, docks and
-        the desktop do not count."""
-        atom = self.display.intern_atom
-        skip = {atom(f"_NET_WM_WINDOW_TYPE_{t}") for t in ("SPLASH", "DOCK", "DESKTOP")}
-        with self.lock:
-            prop = self.root.get_full_property(atom("_NET_CLIENT_LIST"), X.AnyPropertyType)
-            found: dict[int, str] = {}
-            for wid in prop.value if prop else ():
-                window = self.display.create_resource_object("window", wid)
-                try:
-                    if window.get_attributes().map_state != X.IsViewable:
-                        continue
-                    kind = window.get_full_property(atom("_NET_WM_WINDOW_TYPE"), X.AnyPropertyType)
-                    if kind and skip.intersection(kind.value):
-                        continue
-                    name = window.get_full_property(atom("_NET_WM_NAME"), atom("UTF8_STRING"))
-                    title = name.value if name else window.get_wm_name()
-                    found[wid] = title.decode("utf-8", "replace") if isinstance(title, bytes) else str(title or "")
-                except XError:  # the window went away meanwhile
+                        value = describe(window)
+                        if value is not None:
+                            found[wid] = value
+                except XError:
                     continue
         return found
+
+    def managed_classes(self) -> set[str]:
+        """The WM classes of the viewable managed windows."""
+        return set(self._viewable_clients(lambda w: (w.get_wm_class() or (None,))[0]).values())
+
+    def app_windows(self) -> dict[int, str]:
+        """The viewable application windows, id → title; splash screens, docks and the desktop do not count."""
+        atom = self.display.intern_atom
+        skip = {atom(f"_NET_WM_WINDOW_TYPE_{t}") for t in ("SPLASH", "DOCK", "DESKTOP")}
+
+        def title(window) -> str | None:
+            kind = window.get_full_property(atom("_NET_WM_WINDOW_TYPE"), X.AnyPropertyType)
+            if kind and skip.intersection(kind.value):
+                return None
+            name = window.get_full_property(atom("_NET_WM_NAME"), atom("UTF8_STRING"))
+            text = name.value if name else window.get_wm_name()
+            return text.decode("utf-8", "replace") if isinstance(text, bytes) else str(text or "")
+
+        return self._viewable_clients(title)
 
     def painted(self, min_stddev: float = 8.0) -> bool:
         """Whether the screen shows something (a desktop that is up but not yet drawn is one flat colour)."""
