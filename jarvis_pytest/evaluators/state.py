@@ -22,6 +22,7 @@ class FinalState:
     platform: str
     devices: dict[str, Device]
     transfer: Any = None  # the transfer-drive client (list/download), when the task has one
+    baselines: dict[tuple[str, str], bytes] = field(default_factory=dict)  # (platform, path) → bytes at set-up
     _files: dict[tuple[str, str], bytes | None] = field(default_factory=dict)
 
     def device(self, platform: str | None = None) -> Device:
@@ -44,6 +45,11 @@ class FinalState:
         if key not in self._files:
             self._files[key] = self.device(platform).download(path) if self.exists(path, platform) else None
         return self._files[key]
+
+    def baseline(self, path: str, platform: str | None = None) -> bytes | None:
+        """The content `path` had right after set-up, when the template lists it under `baseline` and it existed
+        then (None otherwise: e.g. a file an upstream subtask of a composed task makes)."""
+        return self.baselines.get((platform or self.platform, path))
 
     def pull_text(self, path: str, platform: str | None = None) -> str | None:
         data = self.pull(path, platform)

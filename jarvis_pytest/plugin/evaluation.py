@@ -11,11 +11,24 @@ from jarvis_pytest.evaluators.state import FinalState
 from jarvis_pytest.results.model import EvaluatorVerdict, SubtaskVerdict, TaskResult
 
 
-def evaluate_subtasks(subtasks: list[dict[str, Any]], devices: dict[str, Device], transfer: Any) -> list[SubtaskVerdict]:
+def capture_baselines(subtasks: list[dict[str, Any]], devices: dict[str, Device]) -> dict[tuple[str, str], bytes]:
+    """The content of every subtask's `baseline` paths right after set-up (paths that do not exist are left out)."""
+    out: dict[tuple[str, str], bytes] = {}
+    for sub in subtasks:
+        state = FinalState(platform=sub["platform"], devices=devices)
+        for path in sub.get("baseline", []):
+            data = state.pull(path)
+            if data is not None:
+                out[(sub["platform"], path)] = data
+    return out
+
+
+def evaluate_subtasks(subtasks: list[dict[str, Any]], devices: dict[str, Device], transfer: Any,
+                      baselines: dict[tuple[str, str], bytes] | None = None) -> list[SubtaskVerdict]:
     """Verdicts per subtask. An evaluator that raises (other than an infrastructure error) fails with its error."""
     verdicts: list[SubtaskVerdict] = []
     for index, sub in enumerate(subtasks):
-        state = FinalState(platform=sub["platform"], devices=devices, transfer=transfer)
+        state = FinalState(platform=sub["platform"], devices=devices, transfer=transfer, baselines=baselines or {})
         results: list[EvaluatorVerdict] = []
         for spec in sub.get("evaluate", []):
             func_name = spec.get("func")
@@ -56,6 +69,11 @@ def qc_message(result: TaskResult) -> str:
         if held:
             lines.append(f"subtask {v.index} {v.template}: evaluators pass on the untouched device "
                          f"({'; '.join(f'{e.func}: {e.reason}' for e in held)})")
+    for n in result.qc_negatives or []:
+        if n.error:
+            lines.append(f"negative {n.index} ({n.kind}: {n.note}) could not be applied: {n.error}")
+        elif n.passed:
+            lines.append(f"negative {n.index} ({n.kind}: {n.note}) passes: the evaluators accept this wrong state")
     if not all(s.passed for s in result.subtasks) or not result.subtasks:
         lines.append("the oracle did not solve the task: "
                      + failure_message(result.subtasks, result.end_reason, result.steps))

@@ -14,7 +14,7 @@ from jarvis_pytest.devices.actions import PLATFORMS
 from jarvis_pytest.devices.backend import (TRANSFER_ALIAS, TRANSFER_FOLDER, TRANSFER_PASSWORD, TRANSFER_PORT,
                                            TRANSFER_USER)
 from jarvis_pytest.errors import ConfigError, InfrastructureError
-from jarvis_pytest.plugin.evaluation import evaluate_subtasks
+from jarvis_pytest.plugin.evaluation import capture_baselines, evaluate_subtasks
 from jarvis_pytest.plugin.idle import idle_observation
 from jarvis_pytest.plugin.loop import LoopLimits, run_loop
 from jarvis_pytest.plugin.setup_steps import run_setup
@@ -52,10 +52,13 @@ def task_platforms(task: dict[str, Any]) -> tuple[str, ...]:
 
 def _passed(result: TaskResult) -> bool:
     """Every subtask passed; under the quality gate also every evaluator failed on the freshly set-up devices
-    (a check that holds before the agent acts proves nothing about what it did)."""
+    (a check that holds before the agent acts proves nothing about what it did) and every near-miss wrong state
+    failed."""
     passed = bool(result.subtasks) and all(s.passed for s in result.subtasks)
     if result.qc_initial is not None:
         passed = passed and not any(e.passed for s in result.qc_initial for e in s.evaluators)
+    if result.qc_negatives is not None:
+        passed = passed and not any(n.passed or n.error for n in result.qc_negatives)
     return passed
 
 
@@ -76,8 +79,9 @@ def run_task(task: dict[str, Any], ctx: RunContext) -> TaskResult:
         result.image_ids = dict(env.image_ids)
         t_boot = time.monotonic()
         run_setup(subtasks, env.devices)
+        baselines = capture_baselines(subtasks, env.devices)
         if ctx.qc:
-            result.qc_initial = evaluate_subtasks(subtasks, env.devices, env.transfer)
+            result.qc_initial = evaluate_subtasks(subtasks, env.devices, env.transfer, baselines)
         t_setup = time.monotonic()
         transfer = {"url": f"http://{TRANSFER_ALIAS}:{TRANSFER_PORT}", "user": TRANSFER_USER,
                     "password": TRANSFER_PASSWORD, "folder": TRANSFER_FOLDER,
@@ -92,11 +96,19 @@ def run_task(task: dict[str, Any], ctx: RunContext) -> TaskResult:
             recorder.screenshot(outcome.steps, platform, device.observe().screenshot_png)
         t_loop = time.monotonic()
         result.steps, result.end_reason, result.usage = outcome.steps, outcome.end_reason, outcome.usage
-        result.subtasks = evaluate_subtasks(subtasks, env.devices, env.transfer)
+        result.subtasks = evaluate_subtasks(subtasks, env.devices, env.transfer, baselines)
         t_eval = time.monotonic()
+        if ctx.qc:
+            from jarvis_pytest.plugin.negatives import run_negatives
+
+            env.close()
+            result.qc_negatives = run_negatives(subtasks, platforms, ctx.environments)
         result.status = "passed" if _passed(result) else "failed"
         result.durations = {"boot": t_boot - t_start, "setup": t_setup - t_boot, "agent": outcome.agent_seconds,
-                            "loop": t_loop - t_setup, "evaluate": t_eval - t_loop, "total": t_eval - t_start}
+                            "loop": t_loop - t_setup, "evaluate": t_eval - t_loop,
+                            "total": time.monotonic() - t_start}
+        if ctx.qc:
+            result.durations["negatives"] = time.monotonic() - t_eval
         return result
     except (InfrastructureError, ConfigError) as exc:
         result.status, result.end_reason, result.error = "error", "error", str(exc)

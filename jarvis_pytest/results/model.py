@@ -41,6 +41,19 @@ class SubtaskVerdict(BaseModel):
         return [f"{v.func}: {v.reason}" for v in self.evaluators if not v.passed]
 
 
+class NegativeVerdict(BaseModel):
+    """`jarvis qc`: one near-miss wrong state of a subtask, applied after set-up on fresh devices, then evaluated.
+    `passed` True means the evaluators accepted the wrong state: a violation of the gate."""
+
+    subtask: int
+    index: int
+    kind: str
+    note: str
+    passed: bool
+    error: str | None = None  # the negative's steps could not be applied (a broken negative is a violation too)
+    verdicts: list[SubtaskVerdict] = Field(default_factory=list)
+
+
 class StepRecord(BaseModel):
     """One line of traj.jsonl."""
 
@@ -70,6 +83,7 @@ class TaskResult(BaseModel):
     agent_key: str = ""  # hash of the agent configuration, for --resume
     subtasks: list[SubtaskVerdict] = Field(default_factory=list)
     qc_initial: list[SubtaskVerdict] | None = None  # --qc: verdicts on the freshly set-up devices (must all fail)
+    qc_negatives: list[NegativeVerdict] | None = None  # --qc: verdicts on each near-miss wrong state (must fail)
     steps: int = 0
     end_reason: str = ""  # done | fail | max_steps | timeout | error
     error: str | None = None  # infrastructure error text when status == "error"

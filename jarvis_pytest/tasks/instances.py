@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING, Mapping
 from pydantic import TypeAdapter
 
 from jarvis_pytest.errors import ConfigError
-from jarvis_pytest.tasks.model import (BoundSlot, EvaluatorSpec, InputSlot, Scalar, SetupStep, SolutionStep, Subtask,
-                                       Task, TaskTemplate)
+from jarvis_pytest.tasks.model import (BoundSlot, EvaluatorSpec, InputSlot, Negative, Scalar, SetupStep, SolutionStep,
+                                       Subtask, Task, TaskTemplate)
 from jarvis_pytest.tasks.templating import Where, render_data, render_text
 
 if TYPE_CHECKING:
@@ -74,7 +74,9 @@ def materialise(template: TaskTemplate, values: Mapping[str, Scalar], *, fed: Ma
                 source: object = None) -> Subtask:
     """Bind the inputs (sampled `values`, overridden by `fed` slots from upstream subtasks) and render the rest.
 
-    Setup steps that `provide` a fed input are dropped: the upstream subtask produces that input.
+    Setup steps that `provide` a fed input are dropped: the upstream subtask produces that input; so are baseline
+    paths that are a fed input's value (what an upstream subtask makes is not known at set-up). Negatives are
+    rendered for atomic instances only (nothing is fed): they are the quality gate's, not a composed task's.
     """
     fed = dict(fed or {})
     where = Where(source, template.id)
@@ -96,6 +98,13 @@ def materialise(template: TaskTemplate, values: Mapping[str, Scalar], *, fed: Ma
         outputs[name] = BoundSlot(type=bound_type, value=value, content_checked=None if spec.content_checked else False)
     every = {**input_values, **{name: slot.value for name, slot in outputs.items()}}
     kept = [step for step in template.config if step.provides is None or step.provides not in fed]
+    fed_values = {str(slot.value) for slot in fed.values()}
+    baseline = [render_text(p, every, where.at(f"baseline[{i}]")) for i, p in enumerate(template.baseline)]
+    negatives = None
+    if not fed:
+        negatives = [Negative(kind=n.kind, note=render_text(n.note, every, where.at(f"negatives[{i}].note")),
+                              steps=_render_steps(n.steps, SolutionStep, every, where.at(f"negatives[{i}].steps")))
+                     for i, n in enumerate(template.negatives)] or None
     return Subtask(
         template=template.id,
         platform=template.platform,
@@ -106,6 +115,8 @@ def materialise(template: TaskTemplate, values: Mapping[str, Scalar], *, fed: Ma
         config=_render_steps(kept, _STEP, every, where.at("config")),
         evaluate=_render_steps(template.evaluate, EvaluatorSpec, every, where.at("evaluate")),
         solution=_render_steps(template.solution, SolutionStep, every, where.at("solution")),
+        negatives=negatives,
+        baseline=[p for p in baseline if p not in fed_values],
         consumes=dict(sorted(template.consumes.items())),
         settings=sorted(template.settings),
         source_platform=template.source_platform,

@@ -196,10 +196,12 @@ def validate_template(tpl: TaskTemplate, types: TypeSystem, *, path: object = No
                             "output values may use input slots only")
     slots = {**tpl.inputs, **tpl.outputs}
     _check_placeholders(tpl.instruction, slots, types, tpl, where.at("instruction"))
-    for section in ("config", "evaluate", "solution"):
+    for section in ("config", "evaluate", "solution", "negatives"):
         data = [item.model_dump(mode="json", exclude_none=True) for item in getattr(tpl, section)]
         for text, loc in walk_strings(data, where.at(section)):
             _check_placeholders(text, slots, types, tpl, loc)
+    for i, text in enumerate(tpl.baseline):
+        _check_placeholders(text, slots, types, tpl, where.at(f"baseline[{i}]"))
     for i, step in enumerate(tpl.config):
         if step.provides is not None and step.provides not in tpl.inputs:
             raise fail(f"config[{i}].provides", f"provides names no input slot ({step.provides!r})",
@@ -216,6 +218,18 @@ def validate_template(tpl: TaskTemplate, types: TypeSystem, *, path: object = No
                 raise fail(f"evaluate[{i}].func", f"unknown evaluator {spec.func!r}",
                            f"use one of {sorted(evaluators)} or register it in jarvis_pytest/evaluators/")
     materialise(tpl, sample_inputs(tpl, random.Random(0)), source=path)
+
+
+def negative_problems(tpl: TaskTemplate) -> list[str]:
+    """What the template's `negatives` lack (empty when it has an `artefact` and a wrong/partial/damage state)."""
+    kinds = {n.kind for n in tpl.negatives}
+    problems = []
+    if "artefact" not in kinds:
+        problems.append("no `artefact` negative (the output where asked, its substance wrong or missing)")
+    if not kinds - {"artefact"}:
+        problems.append("no `wrong`, `partial` or `damage` negative (a wrong or partial operation, or damage to "
+                        "what the instruction did not touch)")
+    return problems
 
 
 def _check_placeholders(text: str, slots: dict[str, Any], types: TypeSystem, tpl: TaskTemplate, where: Where,

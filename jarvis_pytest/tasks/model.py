@@ -126,6 +126,23 @@ class SolutionStep(_Strict):
         return self
 
 
+NegativeKind = Literal["artefact", "wrong", "partial", "damage"]
+NEGATIVE_KINDS: tuple[str, ...] = ("artefact", "wrong", "partial", "damage")
+
+
+class Negative(_Strict):
+    """A near-miss wrong final state (an adversary's cheap answer) that the task's evaluators must reject.
+
+    `steps` run after set-up like oracle steps (commands or actions). `kind`: `artefact` — the output exists
+    where asked but its substance is wrong or missing; `wrong` — a wrong value or direction; `partial` — only
+    part of the work; `damage` — the work done, plus damage to what the instruction did not touch.
+    """
+
+    kind: NegativeKind
+    note: str = Field(min_length=1, description="the mistake this state models")
+    steps: list[SolutionStep] = Field(min_length=1)
+
+
 # -- templates ---------------------------------------------------------------------------------------------
 class InputSlot(_Strict):
     """An input slot (id, type) with the domain its value is sampled from: `choices`, `range` or `pattern`.
@@ -181,6 +198,13 @@ class TaskTemplate(_Strict):
     config: list[SetupStep] = Field(default_factory=list, description="setup steps run before the agent starts")
     evaluate: list[EvaluatorSpec] = Field(min_length=1)
     solution: list[SolutionStep] = Field(default_factory=list, description="the oracle's steps")
+    negatives: list[Negative] = Field(
+        default_factory=list, description="near-miss wrong final states that must fail (`jarvis qc` runs them); "
+        "at least an `artefact` and one of `wrong`/`partial`/`damage`")
+    baseline: list[str] = Field(
+        default_factory=list, description="paths (templated) on the device whose content right after set-up "
+        "evaluators compare with (`state.baseline(path)`), e.g. the original of a file the task edits; a path "
+        "that an upstream subtask feeds is not captured (its baseline is then unknown)")
     consumes: dict[SlotName, Consumption] = Field(
         default_factory=dict, description="input slots whose file this task moves, deletes or edits in place")
     settings: list[str] = Field(
@@ -215,6 +239,8 @@ class Subtask(_Strict):
     config: list[SetupStep]
     evaluate: list[EvaluatorSpec]
     solution: list[SolutionStep] = Field(default_factory=list)
+    negatives: list[Negative] | None = Field(default=None, description="atomic instances only (for `jarvis qc`)")
+    baseline: list[str] = Field(default_factory=list)
     consumes: dict[str, Consumption] = Field(default_factory=dict)
     settings: list[str] = Field(default_factory=list)
     source_platform: Platform | None = None

@@ -1,6 +1,8 @@
-"""`jarvis qc`: the paper's quality gate over the atomic task library.
+"""`jarvis qc`: the paper's quality gate over the atomic task library, made adversarial.
 
-For every task instance the evaluator must fail on the freshly set-up device and pass after the oracle. The gate
+For every task instance every evaluator must fail on the freshly set-up device, the task must fail on each of its
+near-miss wrong states (`negatives`: at least an `artefact` and one wrong, partial or damaging operation), and it
+must pass after the oracle. The gate
 runs as a benchmark run (`pytest tasks/test_atomic.py --qc`, so it has the harness's parallelism, pre-warming,
 results and --resume), then prints one row per instance and exits non-zero on any violation or error.
 """
@@ -29,12 +31,32 @@ def _state(verdicts: list[SubtaskVerdict] | None, want: bool) -> str:
     return ("pass" if want else "fail") if good else ("FAIL" if want else "PASS")
 
 
+def _negatives(result: TaskResult) -> tuple[str, str]:
+    """The negatives column ("2/2 fail", or how many PASS) and the first violation's reason ("" when none)."""
+    negs = result.qc_negatives
+    if negs is None:
+        return "-", ""
+    kinds = {n.kind for n in negs}
+    rejected = sum(not n.passed and not n.error for n in negs)
+    cell = f"{rejected}/{len(negs)} fail" if rejected == len(negs) else f"{len(negs) - rejected}/{len(negs)} PASS"
+    for n in negs:
+        if n.error:
+            return cell, f"negative {n.index} ({n.note}) could not be applied: {n.error.splitlines()[0]}"
+        if n.passed:
+            return cell, f"negative {n.index} passes ({n.kind}: {n.note})"
+    if "artefact" not in kinds or not kinds - {"artefact"}:
+        return cell + " (too few)", ("needs negatives of kind `artefact` and of `wrong`/`partial`/`damage` "
+                                      f"(has {sorted(kinds) or 'none'})")
+    return cell, ""
+
+
 def qc_row(result: TaskResult) -> dict[str, str]:
-    """One line of the table: the task, its verdict on the fresh device (must be `fail`), after the oracle
-    (must be `pass`), the gate's outcome and the first reason when it is violated."""
+    """One line of the table: the task, its verdict on the fresh device (must be `fail`), on its negatives (each
+    must fail), after the oracle (must be `pass`), the gate's outcome and the first reason when it is violated."""
     before = _state(result.qc_initial, want=False)
     after = _state(result.subtasks, want=True)
-    ok = result.status == "passed"
+    negatives, negative_reason = _negatives(result)
+    ok = result.status == "passed" and not negative_reason
     reason = ""
     if result.status == "error":
         reason = (result.error or "error").splitlines()[0]
@@ -45,14 +67,17 @@ def qc_row(result: TaskResult) -> dict[str, str]:
             reason = "passes untouched: " + bad[0].func + ": " + bad[0].reason
         elif bad_after:
             reason = "oracle fails: " + bad_after[0].func + ": " + bad_after[0].reason
-    return {"task": result.task_id, "fresh": before, "oracle": after, "gate": "ok" if ok else
-            ("ERROR" if result.status == "error" else "VIOLATED"), "reason": reason[:160]}
+        else:
+            reason = negative_reason
+    return {"task": result.task_id, "fresh": before, "negatives": negatives, "oracle": after,
+            "gate": "ok" if ok else ("ERROR" if result.status == "error" else "VIOLATED"), "reason": reason[:200]}
 
 
 def render_table(rows: list[dict[str, str]]) -> str:
     """A Markdown table of the gate's rows, then a one-line total."""
-    lines = ["| task | fresh device | after oracle | gate | reason |", "|---|---|---|---|---|"]
-    lines += [f"| {r['task']} | {r['fresh']} | {r['oracle']} | {r['gate']} | {r['reason']} |" for r in rows]
+    lines = ["| task | fresh device | negatives | after oracle | gate | reason |", "|---|---|---|---|---|---|"]
+    lines += [f"| {r['task']} | {r['fresh']} | {r.get('negatives', '-')} | {r['oracle']} | {r['gate']} | "
+              f"{r['reason']} |" for r in rows]
     ok = sum(r["gate"] == "ok" for r in rows)
     lines.append(f"\n{ok}/{len(rows)} instances pass the quality gate")
     return "\n".join(lines)
