@@ -70,7 +70,7 @@ def test_retry_after_is_honoured(server):
 
 def test_gives_up_with_infrastructure_error(server):
     server.script(*[fail(503)] * 5, model="m1")
-    with pytest.raises(InfrastructureError, match=r"failed after 3 attempts.*HTTP 503") as info:
+    with pytest.raises(InfrastructureError, match=r"failed after 3 attempt\(s\).*HTTP 503") as info:
         client(server, max_retries=2).chat([user_message("x")])
     assert KEY not in str(info.value)
     assert len(server.requests_for("m1")) == 3

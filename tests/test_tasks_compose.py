@@ -17,7 +17,7 @@ from jarvis_pytest.tasks.compose import Draft, Link, Node, build, category_plan,
 from jarvis_pytest.tasks.dataset import dumps_dataset, load_dataset, load_tasks
 from jarvis_pytest.tasks.graph import classify, evaluability_problems, task_problems
 from jarvis_pytest.tasks.library import Library, load_library
-from jarvis_pytest.tasks.transfer import TRANSFER_DIRS
+from jarvis_pytest.devices.platforms import spec
 
 LIBRARY = Path(__file__).parent / "data" / "library"
 
@@ -45,7 +45,7 @@ def test_cross_platform_edge_gets_a_transfer_and_values_propagate(library):
                                                     "ubuntu-imagemagick-brighten_image"]
     assert transfer.platform == "ubuntu" and transfer.source_platform == "android" and transfer.app == "transfer"
     assert transfer.input["transferred_file"].value == "/sdcard/DCIM/Camera/receipt.jpg"
-    assert transfer.output["received_file"].value == f"{TRANSFER_DIRS['ubuntu']}/receipt.jpg"
+    assert transfer.output["received_file"].value == f"{spec('ubuntu').transfer_folder}/receipt.jpg"
     assert transfer.output["received_file"].type == "jpg_file"  # the transfer hands on the specific type
     assert bright.input["image"].value == "/tmp/transfer/receipt.jpg"
     assert bright.output["bright_image"].value == "/tmp/transfer/receipt_bright.jpg"
@@ -61,7 +61,7 @@ def test_transfer_to_windows_uses_a_windows_path(library):
     draft = Draft((node(library, "ubuntu-calc-sort_column", spreadsheet="/home/user/Documents/grades.xlsx"),
                    node(library, "windows-calc-add_total_row")), (Link(0, "sorted_file", 1, "spreadsheet"),))
     transfer = build(draft).subtasks[1]
-    assert transfer.output["received_file"].value == "C:\\Users\\Docker\\Downloads\\transfer\\grades_sorted.xlsx"
+    assert transfer.output["received_file"].value == "C:\\Users\\user\\Downloads\\transfer\\grades_sorted.xlsx"
     assert transfer.solution[0].platform == "ubuntu"  # the oracle uploads on the source device
 
 

@@ -110,9 +110,55 @@ def test_cli_templates_lists_and_checks_the_library(capsys):
     assert "ubuntu-calc-sort_column\tubuntu\tLibreOffice Calc" in out and "21 templates, all valid" in out
 
 
-def test_cli_templates_can_check_evaluator_names(capsys):
-    assert main(["templates", "--library", str(LIBRARY), "--check-evaluators"]) == 2
-    assert "unknown evaluator" in capsys.readouterr().err  # the test library names evaluators not written yet
+def test_unknown_evaluator_or_generator_is_refused_when_templates_load(tmp_path, capsys):
+    """Names are resolved at load time, naming the file and the field (not at run time, per task)."""
+    tpl = json.loads((LIBRARY / "ubuntu" / "files_rename_file.json").read_text())
+    bad = dict(tpl, evaluate=[{"func": "no_such_check", "args": {}}])
+    root = tmp_path / "lib"
+    (root / "ubuntu").mkdir(parents=True)
+    (root / "ubuntu" / "x.json").write_text(json.dumps(bad))
+    assert main(["templates", "--library", str(root)]) == 2
+    err = capsys.readouterr().err
+    assert "unknown evaluator 'no_such_check'" in err and "x.json" in err and "evaluate[0].func" in err
+    bad = dict(tpl, config=[{"type": "upload_file", "path": "/home/user/a.txt", "generator": "no_such_gen"}])
+    (root / "ubuntu" / "x.json").write_text(json.dumps(bad))
+    assert main(["templates", "--library", str(root)]) == 2
+    assert "unknown file generator 'no_such_gen'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("fixture, why", [
+    ("/etc/passwd", "relative"), ("../../../etc/passwd", "relative"), ("C:\\Windows\\win.ini", "relative"),
+    ("escape/passwd", "leads out"),
+])
+def test_fixture_outside_fixtures_files_is_refused_at_load(tmp_path, capsys, fixture, why, monkeypatch):
+    """A template cannot copy a host file into a device: absolute paths, `..` and symlinks out are refused."""
+    from jarvis_pytest.tasks import library as library_module
+
+    files = tmp_path / "files"
+    files.mkdir()
+    (files / "escape").symlink_to("/etc")
+    monkeypatch.setattr(library_module, "FIXTURE_FILES", files)
+    monkeypatch.setattr(library_module.fixture_problem, "__defaults__", (files,))
+    tpl = json.loads((LIBRARY / "ubuntu" / "files_rename_file.json").read_text())
+    bad = dict(tpl, config=[{"type": "upload_file", "path": "/home/user/a.txt", "fixture": fixture}])
+    root = tmp_path / "lib"
+    (root / "ubuntu").mkdir(parents=True)
+    (root / "ubuntu" / "x.json").write_text(json.dumps(bad))
+    assert main(["templates", "--library", str(root)]) == 2
+    err = capsys.readouterr().err
+    assert why in err and "x.json" in err and "fixture" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("path", ["/etc/cron.d/evil", "/home/user/../../etc/x", "relative/file.txt"])
+def test_upload_outside_the_writable_places_of_the_device_is_refused(tmp_path, capsys, path):
+    tpl = json.loads((LIBRARY / "ubuntu" / "files_rename_file.json").read_text())
+    bad = dict(tpl, config=[{"type": "upload_file", "path": path, "content": "x"}])
+    root = tmp_path / "lib"
+    (root / "ubuntu").mkdir(parents=True)
+    (root / "ubuntu" / "x.json").write_text(json.dumps(bad))
+    assert main(["templates", "--library", str(root)]) == 2
+    err = capsys.readouterr().err
+    assert "not where a task may write" in err and "config[0].path" in err
 
 
 # -- bad task files: one clear error each, naming the file -----------------------------------------------------

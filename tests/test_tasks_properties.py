@@ -27,7 +27,7 @@ FILE_TYPES = ("ordinary_file", "office_file", "xlsx_file", "text_file", "txt_fil
 SCALAR_TYPES = ("text", "file_name", "number", "percentage", "color")
 EXT = {"xlsx_file": ".xlsx", "docx_file": ".docx", "txt_file": ".txt", "jpg_file": ".jpg", "png_file": ".png",
        "zip_file": ".zip", "image_file": ".png", "text_file": ".txt", "office_file": ".xlsx", "ordinary_file": ".bin"}
-BASE = {"android": "/sdcard/Download", "ubuntu": "/home/user/Documents", "windows": "C:\\Users\\Docker\\Documents"}
+BASE = {"android": "/sdcard/Download", "ubuntu": "/home/user/Documents", "windows": "C:\\Users\\user\\Documents"}
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
@@ -71,8 +71,8 @@ def templates(draw, index: int) -> TaskTemplate:
         "inputs": inputs, "outputs": outputs,
         "config": [{"type": "upload_file", "path": f"{{{{{n}}}}}", "content": f"data {{{{{n}.name}}}}", "provides": n}
                    for n in file_inputs] + [{"type": "sleep", "seconds": 0.1}],
-        "evaluate": [{"func": "check", "args": {"slot": f"{{{{{s}}}}}", "text": f"is {{{{{s}}}}}"}} for s in slots]
-        or [{"func": "always", "args": {}}],
+        "evaluate": [{"func": "file_contains", "args": {"slot": f"{{{{{s}}}}}", "text": f"is {{{{{s}}}}}"}} for s in slots]
+        or [{"func": "file_exists", "args": {}}],
         "solution": [{"command": f"echo {{{{{s}}}}}"} for s in slots],
         "consumes": consumes,
         "settings": draw(st.lists(st.sampled_from(["wallpaper", "theme"]), max_size=1)),

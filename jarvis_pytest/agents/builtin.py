@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 from typing import Any
 
 from jarvis_pytest.agents.protocol import AgentStep, HistoryEntry, TaskContext
-from jarvis_pytest.devices.actions import Done, Fail, parse_action
+from jarvis_pytest.devices.actions import Done, Fail, Wait, parse_action
 from jarvis_pytest.devices.base import Device, Observation
 from jarvis_pytest.errors import ConfigError
 
@@ -36,8 +37,9 @@ class OracleAgent:
     A solution step is either `{"action": {...}}` (an action of the unified action space, sent through the
     harness like any agent's action) or `{"command": "...", "user": ..., "platform": ...}` (run on the device
     directly; the oracle is the one agent the harness hands its devices, through `attach_devices`). A step's
-    platform defaults to its subtask's platform. A failing command ends the task with FAIL and the command's
-    output as reasoning, so a broken solution is visible in the trajectory.
+    platform defaults to its subtask's platform. Each command is one step of the trajectory, on its device, with
+    the command, its return code, its time and the end of its output (as a WAIT(0) action, so replays skip it).
+    A failing command ends the task with FAIL and the command's output as reasoning.
     """
 
     name = "oracle"
@@ -46,6 +48,8 @@ class OracleAgent:
         self.options = dict(options or {})
         self.devices: dict[str, Device] = {}
         self.queue: list[tuple[str, dict[str, Any]]] = []
+        self.last_platform: str | None = None
+        self.failed: AgentStep | None = None
 
     def reset(self, task: TaskContext) -> None:
         self.queue = [
@@ -53,26 +57,36 @@ class OracleAgent:
             for sub in task.subtasks
             for step in sub.get("solution", [])
         ]
+        self.last_platform = task.platforms[0] if task.platforms else None
+        self.failed = None
 
     def attach_devices(self, devices: dict[str, Device]) -> None:
         self.devices = devices
 
     def act(self, observations: dict[str, Observation], history: list[HistoryEntry]) -> AgentStep:
-        commands: list[dict[str, Any]] = []
-        while self.queue:
-            platform, step = self.queue.pop(0)
-            if "action" in step:
-                return AgentStep(platform=platform, action=parse_action(step["action"]),
-                                 reasoning=step.get("note", "oracle solution step"), extra={"commands": commands})
-            result = self.devices[platform].run(step["command"], user=step.get("user"),
-                                                timeout=float(step.get("timeout", 120)))
-            commands.append({"platform": platform, "command": step["command"], "returncode": result.returncode})
-            if result.returncode != 0:
-                return AgentStep(platform=platform, action=Fail(), extra={"commands": commands},
-                                 reasoning=f"oracle command failed ({result.returncode}): {step['command']}\n"
-                                           f"{result.stdout[-1000:]}{result.stderr[-1000:]}")
-        return AgentStep(platform=None, action=Done(), reasoning="oracle solution complete",
-                         extra={"commands": commands})
+        if self.failed is not None:
+            return self.failed
+        if not self.queue:
+            return AgentStep(platform=self.last_platform, action=Done(), reasoning="oracle solution complete")
+        platform, step = self.queue.pop(0)
+        self.last_platform = platform
+        if "action" in step:
+            return AgentStep(platform=platform, action=parse_action(step["action"]),
+                             reasoning=step.get("note", "oracle solution step"))
+        t0 = time.monotonic()
+        result = self.devices[platform].run(step["command"], user=step.get("user"),
+                                            timeout=float(step.get("timeout", 120)))
+        record = {"platform": platform, "command": step["command"], "user": step.get("user"),
+                  "returncode": result.returncode, "seconds": round(time.monotonic() - t0, 3),
+                  "output": (result.stdout[-500:] + result.stderr[-500:]).strip()}
+        reasoning = step.get("note") or "oracle command"
+        if result.returncode != 0:
+            self.failed = AgentStep(platform=platform, action=Fail(), extra={"commands": [record]},
+                                    reasoning=f"oracle command failed ({result.returncode}): {step['command']}\n"
+                                              f"{result.stdout[-1000:]}{result.stderr[-1000:]}")
+            return self.failed
+        return AgentStep(platform=platform, action=Wait(seconds=0), reasoning=f"{reasoning}: $ {step['command'][:300]}",
+                         extra={"commands": [record]})
 
     def config(self) -> dict[str, Any]:
         return {"name": self.name}
@@ -105,7 +119,8 @@ class ReplayAgent:
             except json.JSONDecodeError as exc:
                 raise ConfigError(f"line {n} is not JSON ({exc})", path=self.path,
                                   fix="use a traj.jsonl written by jarvis-pytest") from exc
-            if rec.get("action") and rec["action"].get("type") not in ("DONE", "FAIL"):
+            if rec.get("action") and rec["action"].get("type") not in ("DONE", "FAIL") \
+                    and not (rec.get("extra") or {}).get("commands"):  # the oracle's commands are not actions
                 self.steps.append(rec)
 
     def act(self, observations: dict[str, Observation], history: list[HistoryEntry]) -> AgentStep:

@@ -44,6 +44,7 @@ from PIL import Image
 
 from jarvis_pytest.agents.grounding import Grounder, GroundingError
 from jarvis_pytest.agents.protocol import AgentStep, HistoryEntry, TaskContext
+from jarvis_pytest.devices.platforms import spec
 from jarvis_pytest.devices.actions import (PLATFORMS, Action, Click, DoubleClick, Done, DragTo, Fail, Hotkey,
                                            LongPress, MoveTo, RightClick, Scroll, Swipe, SystemButton, Typing, Wait)
 from jarvis_pytest.devices.base import Observation
@@ -52,7 +53,7 @@ from jarvis_pytest.llm.client import ChatClient, image_part, system_message, tex
 from jarvis_pytest.llm.config import EndpointConfig, resolve_endpoint
 
 PROMPT_FILE = Path(__file__).with_name("prompts") / "planner.txt"
-PLATFORM_NAMES = {"android": "Android", "windows": "Windows", "ubuntu": "Ubuntu"}
+
 DEFAULT_PLANNER_MODEL = "qwen3-vl-plus"  # the paper's planner (DashScope compatible mode)
 SECRET_WORDS = ("key", "token", "secret", "password")
 MAX_SCROLL = 50  # wheel notches
@@ -343,9 +344,16 @@ class PlannerGrounderAgent:
         self.template = PROMPT_FILE.read_text(encoding="utf-8")
 
     def preflight(self) -> None:
-        """Called once at start-up: both endpoints must answer, or the run stops with one clear error."""
-        self.planner.check_reachable()
-        self.grounder.client.check_reachable()
+        """Called once at start-up, before any device boots: one minimal real request per model proves its
+        endpoint, model name and key, or the run stops with one clear error saying which is wrong."""
+        from jarvis_pytest.errors import ConfigError
+
+        for role, client in (("planner", self.planner), ("grounder", self.grounder.client)):
+            try:
+                client.probe()
+            except ConfigError as exc:
+                raise ConfigError(f"{role}: {exc.detail}", field=f"--{role}-{(exc.field or 'base_url').replace('_', '-')}",
+                                  fix=exc.fix) from None
 
     def reset(self, task: TaskContext) -> None:
         self.task = task
@@ -361,7 +369,7 @@ class PlannerGrounderAgent:
         parts: list[dict[str, Any]] = []
         for platform in PLATFORMS:
             obs = observations.get(platform)
-            label = PLATFORM_NAMES[platform]
+            label = spec(platform).label
             if obs is None:
                 parts.append(text_part(f"{label} screenshot: (none)"))
                 continue

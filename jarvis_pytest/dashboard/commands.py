@@ -1,4 +1,5 @@
-"""`jarvis dashboard` (and `python start_dashboard.py`): serve the dashboard over a results directory."""
+"""`jarvis dashboard` (and `python start_dashboard.py`): serve the dashboard over a results directory; `jarvis
+runs`: the runs of a results directory with their state (in progress, interrupted, finished) and progress."""
 
 from __future__ import annotations
 
@@ -43,7 +44,25 @@ def main(argv: list[str] | None = None) -> int:
     return serve(parser.parse_args(argv))
 
 
+def list_runs(args: argparse.Namespace) -> int:
+    """One line per run, newest first: id, state, agent, tasks done of planned, passed, errors."""
+    from jarvis_pytest.dashboard.store import ResultsStore
+
+    runs = ResultsStore(args.results).runs()["runs"]
+    if not runs:
+        print(f"no runs under {args.results.resolve()}")
+    for r in runs:
+        c = r.get("counts") or {}
+        print(f"{r['id']}\t{r.get('state', '?')}\t{r.get('agent_name') or '-'}\t"
+              f"{c.get('done', 0)}/{c.get('total', 0)} done\t{c.get('passed', 0)} passed\t"
+              f"{c.get('error', 0)} errors\t{c.get('pending', 0) + c.get('interrupted', 0) + c.get('running', 0)} not finished")
+    return 0
+
+
 def register(sub) -> None:
     p = sub.add_parser("dashboard", help="serve the evaluation dashboard (live runs, trajectories, tables)")
     add_arguments(p)
     p.set_defaults(func=serve)
+    r = sub.add_parser("runs", help="list the runs with their state (in progress, interrupted, finished)")
+    r.add_argument("--results", type=Path, default=Path("reports"), help="the results directory (default reports/)")
+    r.set_defaults(func=list_runs)

@@ -15,10 +15,11 @@ from typing import Any
 from jarvis_pytest.dashboard import stats
 from jarvis_pytest.dashboard.paths import resolve_under
 from jarvis_pytest.dashboard.reading import FileCache, load_json, load_traj, load_traj_summary, screenshots
+from jarvis_pytest.results import run_state
 from jarvis_pytest.results.model import StepRecord, TaskResult
 from jarvis_pytest.results.writer import safe_name
 
-DONE = ("passed", "failed", "error")
+DONE = ("passed", "failed", "error", "timeout")
 
 
 class NotFound(LookupError):
@@ -72,10 +73,13 @@ class ResultsStore:
         return path
 
     def task_dir(self, run_id: str, name: str) -> Path:
-        path = resolve_under(self.run_dir(run_id), ["tasks", name])
-        if not path.is_dir():
-            raise NotFound(f"no task {name!r} in run {run_id!r}")
-        return path
+        """A task's folder by its folder name or by its task id (`ubuntu-calc-sum_total[seed0]`)."""
+        run = self.run_dir(run_id)
+        for candidate in dict.fromkeys((name, safe_name(name))):
+            path = resolve_under(run, ["tasks", candidate])
+            if path.is_dir():
+                return path
+        raise NotFound(f"no task {name!r} in run {run_id!r}")
 
     def _subdirs(self, path: Path) -> list[Path]:
         """Sub-directories of `path` (resolved, inside the root) by name, without hidden ones and symlinks that
@@ -164,7 +168,7 @@ class ResultsStore:
             problems.extend(t["problems"])
         started_names = {t["name"] for t in tasks}
         pending = [t for t in (planned or []) if safe_name(t) not in started_names]
-        counts = {k: 0 for k in ("passed", "failed", "error", "running", "interrupted", "unknown")}
+        counts = {k: 0 for k in ("passed", "failed", "error", "timeout", "running", "interrupted", "unknown")}
         for t in tasks:
             counts[t["status"]] = counts.get(t["status"], 0) + 1
         counts["pending"] = len(pending)
@@ -174,7 +178,7 @@ class ResultsStore:
         started = (meta or {}).get("started") or min((t["started"] for t in tasks if t["started"]), default="")
         data: dict[str, Any] = {
             "id": run_dir.name,
-            "state": "in progress" if _in_progress(run_dir, ended, counts) else "finished",
+            "state": _state(run_dir, meta, ended, counts),
             "agent": agent,
             "agent_name": agent.get("name", "") if isinstance(agent, dict) else str(agent),
             "started": started,
@@ -240,10 +244,27 @@ class ResultsStore:
 
 
 def _session_end(run_dir: Path, meta: dict[str, Any] | None) -> str | None:
-    """When the run's last session ended (run.json is written at the end of each), or None if none has."""
+    """When the run's last session ended, or None while it runs. A session whose process is gone ended at its
+    last heartbeat; run.json files of older runs were written only when a session ended."""
     if meta is None:
         return None
+    live = run_state.liveness(meta)
+    if live == "running":
+        return None
+    if live == "interrupted" and not meta.get("finished"):
+        return str(meta.get("heartbeat") or _mtime_iso(run_dir / "run.json"))
     return str(meta.get("finished") or _mtime_iso(run_dir / "run.json"))
+
+
+def _state(run_dir: Path, meta: dict[str, Any] | None, ended: str | None, counts: dict[str, int]) -> str:
+    """`in progress`, `interrupted` (its process is gone, or it was stopped, before every planned task ran) or
+    `finished`."""
+    if meta is not None and meta.get("format") == run_state.RUN_FORMAT:
+        live = run_state.liveness(meta)
+        if live == "running":
+            return "in progress"
+        return "interrupted" if live == "interrupted" or counts["interrupted"] else "finished"
+    return "in progress" if _in_progress(run_dir, ended, counts) else "finished"
 
 
 def _in_progress(run_dir: Path, ended: str | None, counts: dict[str, int]) -> bool:

@@ -11,9 +11,11 @@ from typing import Annotated, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
 
+from jarvis_pytest.devices.platforms import PLATFORM_NAMES
+
 Button = Literal["left", "middle", "right"]
-Platform = Literal["android", "windows", "ubuntu"]
-PLATFORMS: tuple[str, ...] = ("android", "windows", "ubuntu")
+Platform = Literal[PLATFORM_NAMES]  # type: ignore[valid-type]
+PLATFORMS: tuple[str, ...] = PLATFORM_NAMES
 
 
 class _Action(BaseModel):

@@ -57,3 +57,9 @@ class Device(Protocol):
 
     def launch(self, app: str, *args: str, window_wait: float = 20.0) -> bool:
         """Start an application; return once it shows a window (True) or after `window_wait` s (False)."""
+
+    def open(self, path: str, *, window_wait: float = 20.0) -> bool:
+        """Open a file or folder with the device's default application; True once its window shows."""
+
+    def exists(self, path: str) -> bool:
+        """Whether a file or folder exists at `path` on the device."""

@@ -9,8 +9,9 @@ import httpx
 
 from jarvis_pytest.devices.actions import Action
 from jarvis_pytest.devices.base import ActionOutcome, CommandResult, Observation
-from jarvis_pytest.devices.protocol import (A11yTree, ActionResult, Health, LaunchRequest, LaunchResponse, RunRequest,
-                                            RunResponse, ScreenSize)
+from jarvis_pytest.devices.protocol import (A11yTree, ActionResult, ClipboardText, Health, LaunchRequest,
+                                            LaunchResponse, OpenRequest, PathInfo, RunRequest, RunResponse, ScreenSize,
+                                            WindowList)
 from jarvis_pytest.errors import InfrastructureError
 
 
@@ -109,6 +110,31 @@ class DesktopDevice:
         resp = self._request("POST", "/launch", content=req.model_dump_json(), timeout=window_wait + 30,
                              headers={"Content-Type": "application/json"})
         return LaunchResponse.model_validate(self._ok(resp).json()).window
+
+    def exists(self, path: str) -> bool:
+        """Whether a file or folder exists at `path` on the device."""
+        resp = self._ok(self._request("GET", "/exists", params={"path": path}))
+        return PathInfo.model_validate(resp.json()).exists
+
+    def open(self, path: str, *, window_wait: float = LAUNCH_WINDOW_WAIT) -> bool:
+        """Open a file or folder with the device's default application; like `launch`, True once its window
+        shows."""
+        req = OpenRequest(path=path, window_wait=window_wait)
+        resp = self._request("POST", "/open", content=req.model_dump_json(), timeout=window_wait + 30,
+                             headers={"Content-Type": "application/json"})
+        return LaunchResponse.model_validate(self._ok(resp).json()).window
+
+    def windows(self) -> list[dict]:
+        """The visible top-level windows: id, title, class, box [x, y, w, h], focused."""
+        resp = self._ok(self._request("GET", "/windows"))
+        return [w.model_dump(by_alias=True) for w in WindowList.model_validate(resp.json()).windows]
+
+    def clipboard(self) -> str:
+        return ClipboardText.model_validate(self._ok(self._request("GET", "/clipboard")).json()).text
+
+    def set_clipboard(self, text: str) -> None:
+        self._ok(self._request("PUT", "/clipboard", content=ClipboardText(text=text).model_dump_json(),
+                               headers={"Content-Type": "application/json"}))
 
     def close(self) -> None:
         self.http.close()

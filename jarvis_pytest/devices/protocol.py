@@ -61,3 +61,39 @@ class LaunchResponse(_Model):
 
 class ErrorResponse(_Model):
     error: str
+
+
+class OpenRequest(_Model):
+    """POST /open: open a file or folder with its default application."""
+
+    path: str = Field(min_length=1)
+    window_wait: float = Field(default=0.0, ge=0.0, le=120.0)
+
+
+class PathInfo(_Model):
+    """GET /exists?path=: whether the path exists on the device, and what it is."""
+
+    exists: bool
+    kind: str | None = Field(default=None, description="file, dir or other; null when missing")
+
+
+class WindowInfo(_Model):
+    id: int
+    title: str
+    class_: str = Field(alias="class")
+    box: list[int]  # x, y, width, height on the screen
+    focused: bool = False
+
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+
+
+class WindowList(_Model):
+    """GET /windows: the visible top-level windows."""
+
+    windows: list[WindowInfo]
+
+
+class ClipboardText(_Model):
+    """GET /clipboard (the clipboard's text) and PUT /clipboard (set it)."""
+
+    text: str

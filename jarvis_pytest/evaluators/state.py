@@ -6,7 +6,6 @@ Getters return `None` for a file that does not exist, so checks can say "found n
 
 from __future__ import annotations
 
-import shlex
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -37,7 +36,7 @@ class FinalState:
         return self.device(platform).run(command, user=user)
 
     def exists(self, path: str, platform: str | None = None) -> bool:
-        return self.run(f"test -e {shlex.quote(path)}", platform).returncode == 0
+        return self.device(platform).exists(path)
 
     def pull(self, path: str, platform: str | None = None) -> bytes | None:
         """The bytes of a file on the device, or None when it does not exist."""

@@ -8,29 +8,13 @@ orphans (they may belong to a live run); remove them with `--run` or `--all`.
 
 from __future__ import annotations
 
-import os
 import socket
 import time
-from pathlib import Path
 from typing import Any
 
 from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.infra.containers import LABEL_HOST, LABEL_PID, LABEL_RUN
-
-
-def process_alive(pid: int) -> bool:
-    """Whether process `pid` of this host still runs (a zombie does not)."""
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    stat = Path(f"/proc/{pid}/stat")
-    try:
-        return stat.read_text().rsplit(")", 1)[1].split()[0] != "Z"
-    except (OSError, IndexError):
-        return True
+from jarvis_pytest.results.run_state import process_alive
 
 
 def is_orphan(labels: dict[str, str]) -> bool:

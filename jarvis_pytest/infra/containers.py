@@ -9,11 +9,16 @@ from __future__ import annotations
 import os
 import re
 import socket
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any, Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Callable
 
 from jarvis_pytest.errors import InfrastructureError
+
+if TYPE_CHECKING:
+    from jarvis_pytest.devices.backend import Backend
 
 LABEL_RUN = "org.jarvis.run"
 LABEL_WORKER = "org.jarvis.worker"
@@ -155,3 +160,52 @@ def remove_all(containers: list[Any], network: Any | None) -> list[str]:
                     problems.append(f"network {network.name}: {exc}")
                 time.sleep(0.2)
     return problems
+
+
+@dataclass
+class BootRequest:
+    """What `infra/` hands a backend to boot one device of a task."""
+
+    docker: Any
+    name: str                        # the container's name
+    network: Any                     # the task's Docker network
+    labels: dict[str, str]
+    memory: str | None               # the option's value, else the backend's default
+    cpus: float | None
+    ready_timeout: float
+    egress: bool = False             # --allow-egress: keep the device's default route
+    volumes: dict[str, dict[str, str]] = field(default_factory=dict)  # docker-py `volumes` (e.g. the drive)
+    stop: threading.Event = field(default_factory=threading.Event)    # set when the task's boot is abandoned
+    started: list[Any] = field(default_factory=list)  # containers made so far: removed if the boot fails
+
+
+@dataclass
+class BootedDevice:
+    """A ready device: its container (or other handle) and the base URL of its control server on 127.0.0.1."""
+
+    container: Any
+    url: str
+    backend: "Backend"
+
+
+def boot_container(backend: "Backend", request: BootRequest) -> BootedDevice:
+    """The default boot of a backend: one container of its image on the task network, its control port published
+    on 127.0.0.1, no way out unless egress is allowed, then `wait_ready` while the container is watched."""
+    from jarvis_pytest.infra import egress
+
+    options = dict(backend.container_options)
+    if request.volumes:
+        options["volumes"] = {**options.get("volumes", {}), **request.volumes}
+    c = start_container(request.docker, backend.image_ref, request.name, network=request.network,
+                        labels=request.labels, port=backend.port, memory=request.memory, cpus=request.cpus,
+                        options=options)
+    request.started.append(c)
+    booted = BootedDevice(container=c, url="", backend=backend)
+    if request.stop.is_set():
+        raise InfrastructureError("boot cancelled")
+    if not request.egress:
+        egress.cut_default_route(c)
+    booted.url = host_url(c, backend.port)
+    wait_until_ready(c, lambda t: backend.wait_ready(booted.url, t), request.ready_timeout,
+                     f"the {backend.label} device")
+    return booted

@@ -66,11 +66,24 @@ def _ping() -> bool:
         return False
 
 
+APT_LOCK_WAIT = 600  # seconds apt waits for another apt or dpkg (unattended upgrades, another install) to finish
+
+
 def _apt_install(*packages: str) -> None:
+    """apt-get install, waiting (with a message) while another apt or dpkg holds the lock; one clear error."""
     env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
-    print(f"[engine] apt-get install {' '.join(packages)}", flush=True)
-    subprocess.run(["apt-get", "update", "-q"], check=True, env=env, stdout=subprocess.DEVNULL)
-    subprocess.run(["apt-get", "install", "-y", "-q", *packages], check=True, env=env, stdout=subprocess.DEVNULL)
+    lock = ["-o", f"DPkg::Lock::Timeout={APT_LOCK_WAIT}"]
+    print(f"[engine] apt-get install {' '.join(packages)} (waits up to {APT_LOCK_WAIT // 60} min if another apt or "
+          "dpkg runs)", flush=True)
+    for argv in (["apt-get", *lock, "update", "-q"], ["apt-get", *lock, "install", "-y", "-q", *packages]):
+        proc = subprocess.run(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        if proc.returncode != 0:
+            tail = proc.stderr.strip().splitlines()[-3:]
+            held = any("lock" in line.lower() for line in tail)
+            raise InfrastructureError(
+                f"`{' '.join(argv)}` failed ({proc.returncode}): {' | '.join(tail) or 'no message'}"
+                + ("; another apt or dpkg still holds the lock: wait for it (e.g. unattended-upgrades) and run "
+                   "the command again" if held else "; check the network and the Debian mirror"))
 
 
 def ensure_debian_packages(*packages_by_command: tuple[str, str]) -> None:
@@ -123,8 +136,13 @@ def ensure_engine(wait_seconds: float = 60.0) -> None:
 
 
 def main_ensure(_args=None) -> int:
+    """`jarvis engine ensure`: a Docker engine answers, and (as root) the rules that close task networks are in."""
+    from jarvis_pytest.infra import egress
+
     try:
         ensure_engine()
+        if os.geteuid() == 0:
+            egress.ensure_rules()
     except InfrastructureError as exc:
         print(f"jarvis engine: error: {exc}", file=sys.stderr)
         return 1

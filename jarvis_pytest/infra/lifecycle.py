@@ -1,11 +1,13 @@
 """The containers and network of one task: a fresh device per platform and a transfer drive on a private network.
 
-`Lifecycle(run_id, worker, limits).boot(("ubuntu",))` creates a Docker network for the task, starts the transfer
-drive on it under the alias `transfer` (devices reach it at `http://transfer:5244`) and one container per
-platform from its backend's image, all in parallel, and returns a `TaskEnvironment` once every device's
-`wait_ready` and the drive's listing answer. Ports are published on 127.0.0.1 only. A failed boot removes what it
-created and raises `InfrastructureError` with the failing container's logs. `TaskEnvironment.close()` removes it
-all. One `Lifecycle` per worker process; names are unique per run, worker and instance.
+`Lifecycle(run_id, worker).boot(("ubuntu",))` creates a Docker network for the task (closed to everything but
+its own members unless egress is allowed: `infra/egress.py`), starts the transfer drive on it under the alias
+`transfer` (devices reach it at `http://transfer:5244`) and one device per platform through its backend
+(`devices/backend.py`), all in parallel, and returns a `TaskEnvironment` once every device and the drive answer.
+Ports are published on 127.0.0.1 only. A backend that mounts the drive's storage (`Backend.drive_mount`, e.g.
+the Windows `S:` drive) shares a volume of the task with the drive. A failed boot removes what it created and
+raises `InfrastructureError` with the failing container's logs. `TaskEnvironment.close()` removes it all. One
+`Lifecycle` per worker process; names are unique per run, worker and instance.
 """
 
 from __future__ import annotations
@@ -17,25 +19,26 @@ from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 from typing import Any
 
-from jarvis_pytest.devices.backend import TRANSFER_ALIAS, TRANSFER_PASSWORD, TRANSFER_USER, backend_for
+from jarvis_pytest.devices.backend import Backend, backend_for
 from jarvis_pytest.devices.base import Device
 from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.infra import containers as ctr
-from jarvis_pytest.infra.images import image_tag
+from jarvis_pytest.infra import egress as egress_policy
 from jarvis_pytest.infra.transfer import TransferClient
-from jarvis_pytest.infra.transfer_server import TransferServer, transfer_server
+from jarvis_pytest.infra.transfer_server import (TRANSFER_ALIAS, TRANSFER_PASSWORD, TRANSFER_USER, TransferServer,
+                                                 transfer_server)
 
 TRANSFER_ROLE = "transfer"
-TRANSFER_READY_TIMEOUT = 60.0  # the drive's own allowance; `Limits.ready_timeout` is the devices'
+TRANSFER_READY_TIMEOUT = 60.0
 
 
 @dataclass(frozen=True)
 class Limits:
-    """Resources of each container and how long a device may take to boot."""
+    """Overrides of the backends' own resources (None: each backend's default) and the drive's memory."""
 
-    memory: str | None = "4g"             # per device container (docker `mem_limit`), None: unlimited
-    cpus: float | None = None             # per device container (docker `nano_cpus`), None: unlimited
-    ready_timeout: float = 60.0           # seconds from create until a device must be ready
+    memory: str | None = None             # per device container (docker `mem_limit`)
+    cpus: float | None = None             # per device container (docker `nano_cpus`)
+    ready_timeout: float | None = None    # seconds from create until a device must be ready
     transfer_memory: str | None = "512m"  # the transfer drive's container
 
 
@@ -50,6 +53,11 @@ class TaskEnvironment:
     containers: dict[str, Any]            # role → Docker container
     urls: dict[str, str] = field(default_factory=dict)  # role → http://127.0.0.1:<port>
     run_id: str = ""
+    backends: dict[str, str] = field(default_factory=dict)  # platform → backend label, e.g. "windows (wine)"
+    stand_ins: tuple[str, ...] = ()       # platforms whose backend is a stand-in for the real platform
+    egress: bool = False
+    volumes: list[Any] = field(default_factory=list)
+    _booted: list[Any] = field(default_factory=list)
     _closed: bool = False
 
     def describe(self) -> str:
@@ -62,7 +70,7 @@ class TaskEnvironment:
         return "\n".join(lines)
 
     def close(self) -> None:
-        """Close the clients and remove the containers and the network (idempotent; never raises)."""
+        """Close the clients and remove the devices, the drive, the network and volumes (idempotent; never raises)."""
         if self._closed:
             return
         self._closed = True
@@ -71,41 +79,58 @@ class TaskEnvironment:
                 getattr(client, "close", lambda: None)()
             except Exception:
                 pass
-        problems = ctr.remove_all(list(self.containers.values()), self.network)
+        problems: list[str] = []
+        for booted in self._booted:  # each backend removes its own device
+            try:
+                problems += booted.backend.close(booted)
+            except Exception as exc:
+                problems.append(f"{booted.backend.label}: {exc}")
+        owned = {id(b.container) for b in self._booted}
+        rest = [c for c in self.containers.values() if id(c) not in owned]
+        problems += ctr.remove_all(rest, self.network)
+        problems += _remove_volumes(self.volumes)
         if problems:
             print(f"[jarvis] could not remove {'; '.join(problems)}; run `jarvis cleanup --run {self.run_id}`",
                   file=sys.stderr, flush=True)
 
 
-@dataclass(frozen=True)
-class _Role:
-    """How to start one container of a task."""
-
-    name: str
-    platform: str
-    image: str
-    port: int
-    options: dict[str, Any]
-    memory: str | None
-    cpus: float | None
-    aliases: tuple[str, ...] = ()
+def _remove_volumes(volumes: list[Any]) -> list[str]:
+    problems = []
+    for v in volumes:
+        try:
+            v.remove(force=True)
+        except Exception as exc:
+            if "No such volume" not in str(exc):
+                problems.append(f"volume {v.name}: {exc}")
+    return problems
 
 
 class Lifecycle:
-    """Creates task environments for one run and worker."""
+    """Creates task environments for one run and worker.
+
+    `backends` chooses a backend per platform by name (e.g. {"windows": "wine"}); others get their default.
+    `egress` opens the task networks (recorded in results); by default they are closed (`infra/egress.py`).
+    """
 
     def __init__(self, run_id: str, worker: str = "main", limits: Limits | None = None,
-                 transfer: str | None = None):
+                 transfer: str | None = None, backends: dict[str, str] | None = None, egress: bool = False):
         from jarvis_pytest.infra.engine import client
 
         self.docker = client()
         self.run_id, self.worker = run_id, worker
         self.limits = limits or Limits()
+        self.egress = egress
         self.server: TransferServer = transfer_server(transfer)
+        self.choices = dict(backends or {})
         self._prefix = ctr.docker_name("jarvis", run_id, worker, secrets.token_hex(2))
         self._counter = 0
         self._lock = threading.Lock()
         self._ensure_image(self.server.image, pull=not self.server.built_here)
+        if not egress:
+            egress_policy.ensure_rules()
+
+    def backend(self, platform: str) -> Backend:
+        return backend_for(platform, self.choices.get(platform))
 
     def _ensure_image(self, image: str, pull: bool) -> None:
         import docker.errors
@@ -133,80 +158,104 @@ class Lifecycle:
     def _network(self, name: str) -> Any:
         try:
             return self.docker.networks.create(name, driver="bridge",
+                                               options=egress_policy.network_options(name, self.egress),
                                                labels=ctr.labels(self.run_id, self.worker, "network"))
         except Exception as exc:
             hint = (" — Docker ran out of address pools, most likely networks left by crashed runs: run "
                     "`jarvis cleanup`" if "address pool" in str(exc) else "")
             raise InfrastructureError(f"cannot create network {name}: {exc}{hint}") from exc
 
-    def _roles(self, base: str, platforms: tuple[str, ...]) -> dict[str, _Role]:
-        if not platforms or TRANSFER_ROLE in platforms:
-            raise InfrastructureError(f"cannot boot platforms {list(platforms)}: give at least one device platform "
-                                      f"(not {TRANSFER_ROLE!r}, which every task gets)")
-        backends = {p: backend_for(p) for p in platforms}
-        roles = {TRANSFER_ROLE: _Role(f"{base}-transfer", "", self.server.image, self.server.port,
-                                      dict(self.server.container_options), self.limits.transfer_memory, None,
-                                      (TRANSFER_ALIAS,))}
-        for p, b in backends.items():
-            roles[p] = _Role(f"{base}-{p}", p, image_tag(b.image), b.port, dict(b.container_options),
-                             self.limits.memory, self.limits.cpus)
-        return roles
+    def _drive_volume(self, name: str) -> Any:
+        return self.docker.volumes.create(f"{name}-drive", labels=ctr.labels(self.run_id, self.worker, "volume"))
 
     def boot(self, platforms: tuple[str, ...] | list[str]) -> TaskEnvironment:
         """A network with a transfer drive and one fresh, ready device per platform (booted in parallel)."""
         platforms = tuple(dict.fromkeys(platforms))
+        if not platforms or TRANSFER_ROLE in platforms:
+            raise InfrastructureError(f"cannot boot platforms {list(platforms)}: give at least one device platform "
+                                      f"(not {TRANSFER_ROLE!r}, which every task gets)")
+        backends = {p: self.backend(p) for p in platforms}   # unknown platforms fail here, before anything exists
+        for p, b in backends.items():
+            why = b.unavailable()
+            if why:
+                raise InfrastructureError(f"the {b.label} device cannot run on this machine: {why}")
         base = self._next_name()
-        roles = self._roles(base, platforms)          # unknown platforms fail here, before anything exists
         network = self._network(base)
-        started: dict[str, Any] = {}                   # role → container, filled by the boot threads
-        clients: dict[str, Any] = {}
+        volumes: list[Any] = []
         stop = threading.Event()
+        started: list[Any] = []                       # every container made, by any thread
+        booted: dict[str, ctr.BootedDevice] = {}
+        clients: dict[str, Any] = {}
+        urls: dict[str, str] = {}
+        try:
+            drive_volume = None
+            if any(b.drive_mount for b in backends.values()):
+                drive_volume = self._drive_volume(base)
+                volumes.append(drive_volume)
 
-        def bring_up(role: str, spec: _Role) -> str:
-            if stop.is_set():
-                raise InfrastructureError("boot cancelled")
-            kind = "transfer" if role == TRANSFER_ROLE else "device"
-            c = ctr.start_container(self.docker, spec.image, spec.name, network=network,
-                                    labels=ctr.labels(self.run_id, self.worker, kind, spec.platform),
-                                    port=spec.port, aliases=spec.aliases, memory=spec.memory, cpus=spec.cpus,
-                                    options=spec.options)
-            started[role] = c
-            if stop.is_set():
-                raise InfrastructureError("boot cancelled")
-            url = ctr.host_url(c, spec.port)
-            if role == TRANSFER_ROLE:
-                drive = clients[role] = self.server.client(url, TRANSFER_USER, TRANSFER_PASSWORD)
+            def bring_up_drive() -> None:
+                options = dict(self.server.container_options)
+                if drive_volume is not None:
+                    options["volumes"] = {drive_volume.name: {"bind": self.server.storage, "mode": "rw"}}
+                c = ctr.start_container(self.docker, self.server.image, f"{base}-transfer", network=network,
+                                        labels=ctr.labels(self.run_id, self.worker, "transfer"),
+                                        port=self.server.port, aliases=(TRANSFER_ALIAS,),
+                                        memory=self.limits.transfer_memory, options=options)
+                started.append(c)
+                if stop.is_set():
+                    raise InfrastructureError("boot cancelled")
+                if not self.egress:
+                    egress_policy.cut_default_route(c)
+                url = urls[TRANSFER_ROLE] = ctr.host_url(c, self.server.port)
+                drive = clients[TRANSFER_ROLE] = self.server.client(url, TRANSFER_USER, TRANSFER_PASSWORD)
                 if self.server.provision:
                     ctr.wait_until_ready(c, lambda t: drive.wait_ready(t), TRANSFER_READY_TIMEOUT,
                                          "the transfer drive's server")
                     self.server.provision(url)
                 ctr.wait_until_ready(c, lambda t: drive.wait_ready(t), TRANSFER_READY_TIMEOUT, "the transfer drive")
-            else:
-                backend = backend_for(role)
-                ctr.wait_until_ready(c, lambda t: backend.wait_ready(url, t), self.limits.ready_timeout,
-                                     f"the {role} device")
-            return url
 
-        executor = ThreadPoolExecutor(max_workers=len(roles), thread_name_prefix=f"boot-{base}")
-        try:
-            futures = {role: executor.submit(bring_up, role, spec) for role, spec in roles.items()}
-            done, _ = wait(futures.values(), return_when=FIRST_EXCEPTION)
-            errors = [f.exception() for f in futures.values() if f in done and f.exception() is not None]
-            if errors:
-                stop.set()
-                ctr.remove_all(list(started.values()), None)  # makes the other boot threads fail fast
-                raise errors[0]
-            urls = {role: f.result() for role, f in futures.items()}
-            devices = {p: backend_for(p).connect(urls[p]) for p in platforms}
+            def bring_up(platform: str, backend: Backend) -> None:
+                if stop.is_set():
+                    raise InfrastructureError("boot cancelled")
+                vols = {}
+                if backend.drive_mount and drive_volume is not None:
+                    vols = {drive_volume.name: {"bind": backend.drive_mount, "mode": "rw"}}
+                request = ctr.BootRequest(
+                    docker=self.docker, name=f"{base}-{platform}", network=network,
+                    labels=ctr.labels(self.run_id, self.worker, "device", platform),
+                    memory=self.limits.memory or backend.memory, cpus=self.limits.cpus or backend.cpus,
+                    ready_timeout=self.limits.ready_timeout or backend.ready_timeout, egress=self.egress,
+                    volumes=vols, stop=stop, started=started)
+                booted[platform] = backend.boot(request)
+                urls[platform] = booted[platform].url
+
+            executor = ThreadPoolExecutor(max_workers=len(platforms) + 1, thread_name_prefix=f"boot-{base}")
+            try:
+                futures = [executor.submit(bring_up_drive)]
+                futures += [executor.submit(bring_up, p, b) for p, b in backends.items()]
+                done, _ = wait(futures, return_when=FIRST_EXCEPTION)
+                errors = [f.exception() for f in futures if f in done and f.exception() is not None]
+                if errors:
+                    stop.set()
+                    ctr.remove_all(list(started), None)  # makes the other boot threads fail fast
+                    raise errors[0]
+            finally:
+                executor.shutdown(wait=True, cancel_futures=True)
+            devices = {p: backends[p].connect(booted[p].url) for p in platforms}
         except BaseException:
             stop.set()
-            ctr.remove_all(list(started.values()), None)
-            executor.shutdown(wait=True, cancel_futures=True)
-            ctr.remove_all(list(started.values()), network)  # also what was created while we removed
+            ctr.remove_all(list(started), network)  # everything made, also while we were removing
+            _remove_volumes(volumes)
             for client in clients.values():
                 client.close()
             raise
-        executor.shutdown(wait=True)
-        image_ids = {role: c.attrs["Image"] for role, c in started.items()}
+        containers: dict[str, Any] = {}
+        for c in started:
+            role = c.labels.get(ctr.LABEL_PLATFORM) or TRANSFER_ROLE
+            containers[role] = c
+        image_ids = {role: c.attrs["Image"] for role, c in containers.items()}
         return TaskEnvironment(devices=devices, transfer=clients[TRANSFER_ROLE], image_ids=image_ids,
-                               network=network, containers=dict(started), urls=urls, run_id=self.run_id)
+                               network=network, containers=containers, urls=urls, run_id=self.run_id,
+                               backends={p: b.label for p, b in backends.items()},
+                               stand_ins=tuple(p for p, b in backends.items() if b.stand_in),
+                               egress=self.egress, volumes=volumes, _booted=list(booted.values()))

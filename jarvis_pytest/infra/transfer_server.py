@@ -18,11 +18,16 @@ import secrets
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from jarvis_pytest.devices.backend import TRANSFER_FOLDER, TRANSFER_PASSWORD, TRANSFER_PORT, TRANSFER_USER
 from jarvis_pytest.errors import ConfigError
 from jarvis_pytest.infra.images import image_tag
 from jarvis_pytest.infra.transfer import AlistClient, CopypartyClient, TransferClient
 
+TRANSFER_ALIAS = "transfer"        # the drive's name on a task's Docker network
+TRANSFER_PORT = 5244               # the paper's AList port
+TRANSFER_USER = "agent"
+TRANSFER_PASSWORD = "agentPassword"
+TRANSFER_FOLDER = "/data"          # the folder agents use on the drive
+COPYPARTY_DRIVE_ROOT = "/srv/drive"  # copyparty's volume root inside its container (the drive's `/`)
 ALIST_DRIVE_ROOT = "/srv/drive"       # a tmpfs inside the AList container: the drive lives as long as the task
 ALIST_PERMISSIONS = 0b11_1111_1011    # AList permission bits 0-9 except 2 (offline downloads): read, write, webdav
 
@@ -38,6 +43,7 @@ class TransferServer:
     provision: Callable[[str], None] | None = None          # base URL → create user and folder; after ready
     built_here: bool = True                                 # built by `jarvis images build` (else pulled)
     port: int = TRANSFER_PORT
+    storage: str = COPYPARTY_DRIVE_ROOT + TRANSFER_FOLDER   # where the drive keeps `/data` inside its container
 
 
 def _provision_alist(base_url: str, admin_password: str) -> None:
@@ -62,7 +68,8 @@ def _alist() -> TransferServer:
         container_options={"environment": {"ALIST_ADMIN_PASSWORD": admin_password,
                                            "OPENLIST_ADMIN_PASSWORD": admin_password},
                            "tmpfs": {ALIST_DRIVE_ROOT: "mode=0777"}},
-        provision=lambda url: _provision_alist(url, admin_password), built_here=False)
+        provision=lambda url: _provision_alist(url, admin_password), built_here=False,
+        storage=ALIST_DRIVE_ROOT + TRANSFER_FOLDER)
 
 
 def _copyparty() -> TransferServer:

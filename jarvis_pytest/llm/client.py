@@ -26,7 +26,8 @@ from typing import Any
 
 import httpx
 
-from jarvis_pytest.errors import InfrastructureError
+from jarvis_pytest.errors import ConfigError, InfrastructureError
+from jarvis_pytest.llm.deadline import remaining
 
 #: HTTP statuses worth another try: rate limits, overload, gateway trouble.
 RETRY_STATUSES = frozenset({408, 425, 429, 500, 502, 503, 504, 520, 521, 522, 524, 529})
@@ -131,17 +132,6 @@ class ChatClient:
         """What identifies this client in results: endpoint and model, never the key."""
         return {"base_url": self.base_url, "model": self.model}
 
-    def check_reachable(self, timeout: float = 5.0) -> None:
-        """Raise ConfigError when nothing answers at the endpoint (any HTTP answer, even 401 or 404, is reachable)."""
-        from jarvis_pytest.errors import ConfigError
-
-        try:
-            self._http.get(f"{self.base_url}/models", timeout=timeout)
-        except httpx.HTTPError as exc:
-            raise ConfigError(f"endpoint {self.base_url} is unreachable ({exc.__class__.__name__})",
-                              field="base_url", fix="start the server or correct --planner-base-url / "
-                              "--grounder-base-url (or JARVIS_*_BASE_URL)") from None
-
     def close(self) -> None:
         self._http.close()
 
@@ -158,29 +148,77 @@ class ChatClient:
         started = time.monotonic()
         last = ""
         for attempt in range(1, self.max_retries + 2):
+            left = remaining()
+            if left is not None and left <= 0:
+                last = last or "no attempt made"
+                raise InfrastructureError(f"{url} (model {self.model}): the step's deadline passed after "
+                                          f"{attempt - 1} attempt(s); last error: {last}")
             try:
                 with self._semaphore:
-                    raw = self._once(url, body)
+                    raw = self._once(url, body, self.timeout if left is None else min(self.timeout, left))
                 return self._result(raw, attempt, time.monotonic() - started)
             except _Retry as exc:
                 last = exc.reason
                 if attempt > self.max_retries:
                     break
-                time.sleep(self._wait(attempt, exc.wait))
-        raise InfrastructureError(f"{url} (model {self.model}) failed after {self.max_retries + 1} attempts; "
+                wait = self._wait(attempt, exc.wait)
+                left = remaining()
+                if left is not None and wait >= left:
+                    break
+                time.sleep(wait)
+        raise InfrastructureError(f"{url} (model {self.model}) failed after {attempt} attempt(s); "
                                   f"last error: {last}")
 
-    def _once(self, url: str, body: dict[str, Any]) -> dict[str, Any]:
+    def probe(self, timeout: float = 30.0) -> None:
+        """One minimal real request (a one-token completion) proving the endpoint, the model name and the key;
+        a ConfigError that says which is wrong otherwise. Run once at start-up, before any device boots."""
+        url = f"{self.base_url}/chat/completions"
+        body = {"model": self.model, "max_tokens": 1, "temperature": 0,
+                "messages": [{"role": "user", "content": "Reply with OK."}]}
         try:
-            resp = self._http.post(url, json=body)
+            resp = self._http.post(url, json=body, timeout=timeout)
+        except httpx.TimeoutException:
+            raise ConfigError(f"{url} accepted the connection but sent no answer within {timeout:g} s",
+                              field="base_url", fix="check that the model server is up and not stuck; or raise "
+                              "the endpoint timeout") from None
+        except httpx.HTTPError as exc:
+            raise ConfigError(f"{url} is unreachable ({exc.__class__.__name__})", field="base_url",
+                              fix="start the server or correct the base URL (--planner-base-url / "
+                              "--grounder-base-url or JARVIS_*_BASE_URL)") from None
+        if resp.status_code < 400:
+            try:
+                self._result(resp.json(), 1, 0.0)
+            except (ValueError, InfrastructureError):
+                raise ConfigError(f"{url} answered HTTP {resp.status_code} but not with a chat completion: "
+                                  f"{_snippet(resp)}", field="base_url",
+                                  fix="give the API root of an OpenAI-compatible server (ending in /v1)") from None
+            return
+        text = _snippet(resp).lower()
+        if resp.status_code in (401, 403) or "api key" in text or "api_key" in text or "unauthor" in text:
+            raise ConfigError(f"{url} refused the API key (HTTP {resp.status_code}: {_snippet(resp)})",
+                              field="api_key", fix="check the key (--planner-api-key / --grounder-api-key or "
+                              "JARVIS_*_API_KEY) and that it may use this model")
+        if resp.status_code == 404 or "model" in text:
+            raise ConfigError(f"{url} does not serve model {self.model!r} (HTTP {resp.status_code}: "
+                              f"{_snippet(resp)})", field="model", fix="check the model name (--planner-model / "
+                              "--grounder-model) against the server's /models list, and the base URL")
+        raise ConfigError(f"{url} answered HTTP {resp.status_code} to a minimal request: {_snippet(resp)}",
+                          field="base_url", fix="check the base URL, the model name and the API key")
+
+    def _once(self, url: str, body: dict[str, Any], timeout: float | None = None) -> dict[str, Any]:
+        timeout = self.timeout if timeout is None else timeout
+        try:
+            resp = self._http.post(url, json=body, timeout=timeout)
         except httpx.TimeoutException as exc:
-            raise _Retry(f"timeout after {self.timeout:g} s ({type(exc).__name__})") from None
+            raise _Retry(f"timeout after {timeout:g} s ({type(exc).__name__})") from None
         except httpx.TransportError as exc:
             raise _Retry(f"connection error: {type(exc).__name__}: {exc}") from None
         if resp.status_code in RETRY_STATUSES:
             raise _Retry(f"HTTP {resp.status_code}: {_snippet(resp)}", _retry_after(resp))
         if resp.status_code >= 400:
-            hint = " (check the API key)" if resp.status_code in (401, 403) else ""
+            text = resp.text.lower()
+            hint = (" (check the API key)" if resp.status_code in (401, 403) or "api key" in text or "api_key" in text
+                    else " (check the model name)" if resp.status_code == 404 or "model" in text else "")
             raise InfrastructureError(f"{url} (model {self.model}) answered HTTP {resp.status_code}{hint}: "
                                       f"{_snippet(resp)}")
         try:

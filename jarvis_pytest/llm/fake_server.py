@@ -15,7 +15,9 @@ httpx requests. Use it as a context manager::
 Answers are chosen in this order: the model's queue, the any-model queue, the model's responder, the default
 responder. A request nothing answers gets HTTP 400 naming the model (a test bug, so the client does not retry).
 Endpoints: ``POST /v1/chat/completions``, ``GET /v1/models``. With ``api_key`` set, requests without the matching
-``Authorization: Bearer`` get 401.
+``Authorization: Bearer`` get 401. A one-token request (``max_tokens: 1``, the harness's start-up probe) is
+answered "OK" for a model in ``models`` and with 404 "model does not exist" for any other, as vLLM does, without
+touching the scripted answers.
 """
 
 from __future__ import annotations
@@ -273,6 +275,11 @@ class _Handler(BaseHTTPRequestHandler):
             return self._send(401, {"error": {"message": "invalid api key"}})
         if not isinstance(body, dict) or "messages" not in body:
             return self._send(400, {"error": {"message": "body must be a JSON object with messages"}})
+        if body.get("max_tokens") == 1:  # a start-up probe: a real server answers it whatever was scripted
+            if body.get("model") not in fake.models:
+                return self._send(404, {"error": {"message": f"The model `{body.get('model')}` does not exist.",
+                                                  "code": 404}})
+            return self._send(200, fake._completion(req, Reply(text="OK")))
         try:
             reply = fake._choose(req)
         except Exception as exc:  # a responder's bug: visible in the client's error

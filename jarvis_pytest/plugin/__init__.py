@@ -1,5 +1,5 @@
-"""The jarvis pytest plugin (entry point `pytest11: jarvis`): options, task collection, the task fixture,
-results and the TSR/SSR rollup. Each concern lives in its own module; this one only wires pytest hooks."""
+"""The jarvis pytest plugin (entry point `pytest11: jarvis`): options, then one `JarvisSession` per process,
+registered as a plugin, which implements the hooks (collection, the task fixture, results, the rollup)."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ import pytest
 
 from jarvis_pytest.plugin import session as _session
 from jarvis_pytest.plugin.options import addoption
+from jarvis_pytest.plugin.rootdir import redetermine
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -14,43 +15,16 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 
 @pytest.hookimpl(tryfirst=True)
-def pytest_configure(config: pytest.Config) -> None:
-    _session.configure(config)
-
-
-def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
-    if "jarvis_task" in metafunc.fixturenames:
-        _session.parametrize(metafunc)
-
-
-def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config, items: list[pytest.Item]) -> None:
-    _session.check_collected(config, items)
-
-
-def pytest_collection_finish(session: pytest.Session) -> None:
-    _session.write_plan(session)
-
-
-@pytest.hookimpl(hookwrapper=True)
-def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None):
-    _session.prewarm_next(item, nextitem)
-    yield
-
-
-def pytest_runtest_logreport(report: pytest.TestReport) -> None:
-    _session.collect_report(report)
-
-
-def pytest_terminal_summary(terminalreporter, exitstatus, config: pytest.Config) -> None:
-    _session.terminal_summary(terminalreporter, config)
+def pytest_load_initial_conftests(early_config: pytest.Config, parser: pytest.Parser, args: list[str]) -> None:
+    redetermine(early_config, args)
 
 
 @pytest.hookimpl(tryfirst=True)
-def pytest_sessionfinish(session: pytest.Session, exitstatus) -> None:
-    _session.finish(session)
+def pytest_configure(config: pytest.Config) -> None:
+    _session.configure(config)
 
 
 @pytest.fixture
 def jarvis_result(request: pytest.FixtureRequest, jarvis_task):
     """Run the parametrized task and give its TaskResult; infrastructure errors surface as pytest errors."""
-    return _session.run_case(request, jarvis_task)
+    return _session.get(request.config).run_case(request, jarvis_task)

@@ -11,6 +11,7 @@ import pytest
 from jarvis_pytest.plugin.options import JarvisOptions
 
 CATEGORY_MARKERS = ("atomic", "sw", "mi", "md")
+PROPERTY = "jarvis"  # the name of the compact task result in `report.user_properties`
 
 
 def app_marker(app: str) -> str:

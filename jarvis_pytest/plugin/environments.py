@@ -11,5 +11,5 @@ def make_environments(options: JarvisOptions, *, run_id: str, worker: str):
     from jarvis_pytest.infra.pool import Pool
 
     lifecycle = Lifecycle(run_id, worker, Limits(memory=options.device_memory, cpus=options.device_cpus),
-                          transfer=options.transfer)
+                          transfer=options.transfer, backends=options.backends, egress=options.allow_egress)
     return Pool(lifecycle, enabled=options.prewarm)

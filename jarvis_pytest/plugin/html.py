@@ -8,14 +8,14 @@ from pathlib import Path
 
 import pytest
 
-from jarvis_pytest.plugin import session as _session
+from jarvis_pytest.plugin.cases import PROPERTY
 
 COLUMNS = ("platform", "category", "subtasks", "steps", "duration (s)")
 
 
 def _props(report) -> dict | None:
     for name, value in getattr(report, "user_properties", ()):
-        if name == _session.PROPERTY:
+        if name == PROPERTY:
             return value
     return None
 
@@ -23,14 +23,15 @@ def _props(report) -> dict | None:
 class HtmlHooks:
     """Registered only when pytest-html is active."""
 
-    def __init__(self, config: pytest.Config):
+    def __init__(self, config: pytest.Config, session):
         self.config = config
+        self.session = session
 
     def _report_dir(self) -> Path:
         """Where report.html is written: --html when given, else the run directory (the controller's default,
         which xdist workers do not see in their options)."""
         path = getattr(self.config.option, "htmlpath", None)
-        return Path(path).resolve().parent if path else _session.get(self.config).run_dir
+        return Path(path).resolve().parent if path else self.session.run_dir
 
     def pytest_html_results_table_header(self, cells: list[str]) -> None:
         cells[2:2] = [f"<th>{c}</th>" for c in COLUMNS]
@@ -66,12 +67,12 @@ class HtmlHooks:
         report.extras = extras
 
     def pytest_html_results_summary(self, prefix, summary, postfix) -> None:
-        session = _session.get(self.config)
-        md = session.run_dir / "summary.md"
+        md = self.session.run_dir / "summary.md"
         if md.exists():
             prefix.append(f"<h2>Task success rates</h2><pre>{_html.escape(md.read_text())}</pre>")
 
 
-def register(config: pytest.Config) -> None:
+def register(config: pytest.Config, session) -> None:
+    """Add the task columns, summary and screenshots to pytest-html's report when it is active."""
     if config.pluginmanager.hasplugin("html"):
-        config.pluginmanager.register(HtmlHooks(config), "jarvis-html")
+        config.pluginmanager.register(HtmlHooks(config, session), "jarvis-html")

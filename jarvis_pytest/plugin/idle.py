@@ -8,14 +8,13 @@ from functools import lru_cache
 from PIL import Image, ImageDraw
 
 from jarvis_pytest.devices.base import Observation
-
-IDLE_SIZES = {"android": (1080, 2400), "windows": (1920, 1080), "ubuntu": (1920, 1080)}
+from jarvis_pytest.devices.platforms import spec
 
 
 @lru_cache(maxsize=None)
 def idle_observation(platform: str) -> Observation:
     """A neutral screen telling the agent that this platform is not part of the task."""
-    w, h = IDLE_SIZES.get(platform, (1920, 1080))
+    w, h = spec(platform).screen
     img = Image.new("RGB", (w, h), (40, 44, 52))
     draw = ImageDraw.Draw(img)
     text = f"{platform}: not used by this task (device unavailable)"

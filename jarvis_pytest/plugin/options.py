@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import uuid
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -10,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from jarvis_pytest.errors import ConfigError
 from jarvis_pytest.plugin.loop import LoopLimits
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -27,20 +29,28 @@ def addoption(parser: pytest.Parser) -> None:
         g.addoption(f"--{role}-model", default=None, help=f"model name of the {role} (env JARVIS_{role.upper()}_MODEL)")
         g.addoption(f"--{role}-api-key", default=None, help=f"API key of the {role} (env "
                     f"JARVIS_{role.upper()}_API_KEY); never written to results")
-    g.addoption("--max-steps", type=int, default=50, help="step limit per task (default 50)")
-    g.addoption("--step-timeout", type=float, default=300.0, help="seconds for one agent decision (default 300)")
-    g.addoption("--task-timeout", type=float, default=3600.0, help="seconds for one task's loop (default 3600)")
+    g.addoption("--max-steps", default="50", help="step limit per task (default 50)")
+    g.addoption("--step-timeout", default="300", help="seconds for one agent decision, model calls included; "
+                "past it the task ends as an infrastructure error (default 300)")
+    g.addoption("--task-timeout", default="3600", help="seconds for one task's agent loop; past it the task ends "
+                "with status `timeout`, counted apart from the rates (default 3600)")
     g.addoption("--results-dir", default=None, help="where to write results (default reports/<run id>/)")
     g.addoption("--resume", default=None, metavar="RUN_DIR", help="continue a run: tasks with a result from the "
                 "same agent configuration are not run again; errors and unfinished tasks are")
-    g.addoption("--device-memory", default="4g", help="memory limit per device container (default 4g)")
-    g.addoption("--device-cpus", type=float, default=None, help="CPU limit per device container (default none)")
+    g.addoption("--device-memory", default=None, help="memory limit per device container, e.g. 4g or 1536m "
+                "(default: the platform's own, 4g for Ubuntu)")
+    g.addoption("--device-cpus", default=None, help="CPU limit per device container, e.g. 1.5 (default none)")
+    g.addoption("--windows-backend", default="auto", help="the Windows device: kvm (alias real: a Windows VM, "
+                "needs /dev/kvm and a prepared disk), wine (the offline stand-in) or auto (kvm where prepared, "
+                "else wine); results record which ran")
+    g.addoption("--allow-egress", action="store_true", help="let devices reach beyond their task network (the "
+                "host, the local network, the internet); off by default, and recorded in every result")
     g.addoption("--keep-devices", action="store_true", help="keep each task's devices after it ends, for debugging")
     g.addoption("--no-prewarm", action="store_true", help="do not boot the next task's devices in advance")
     g.addoption("--library", default=str(REPO_ROOT / "tasks"), help="folder of atomic task templates")
     g.addoption("--dataset", action="append", default=None, metavar="FILE",
                 help="composed-task dataset file(s) (default: tasks/composed/*.json)")
-    g.addoption("--instances", type=int, default=2, help="seeded instances per atomic template (default 2)")
+    g.addoption("--instances", default="2", help="seeded instances per atomic template (default 2)")
     g.addoption("--transfer", default=None, choices=("copyparty", "alist"),
                 help="the network drive's server: copyparty (offline default, built here) or alist (an AList/"
                 "OpenList image pulled from a registry, $JARVIS_ALIST_IMAGE); default $JARVIS_TRANSFER or copyparty")
@@ -55,7 +65,7 @@ class JarvisOptions:
     limits: LoopLimits
     results_dir: Path | None
     resume: Path | None
-    device_memory: str
+    device_memory: str | None
     device_cpus: float | None
     keep_devices: bool
     prewarm: bool
@@ -65,6 +75,8 @@ class JarvisOptions:
     transfer: str | None = None
     qc: bool = False
     endpoints: dict[str, dict[str, str | None]] = field(default_factory=dict)
+    allow_egress: bool = False
+    backends: dict[str, str] = field(default_factory=dict)  # platform → backend name (absent: the default)
 
 
 def _endpoint(config: pytest.Config, role: str) -> dict[str, str | None]:
@@ -76,39 +88,116 @@ def _endpoint(config: pytest.Config, role: str) -> dict[str, str | None]:
     }
 
 
+MEMORY = re.compile(r"^\d+(\.\d+)?[bkmg]?$", re.IGNORECASE)
+
+
+def _bad(option: str, value: object, fix: str) -> ConfigError:
+    return ConfigError(f"{value!r} is not valid", field=option, fix=fix)
+
+
+def _number(config: pytest.Config, option: str, kind: type, *, minimum: float, fix: str) -> float | int:
+    """An option's value as `kind`, at least `minimum`; one clear error otherwise."""
+    raw = config.getoption(option)
+    try:
+        value = kind(raw)
+    except (TypeError, ValueError):
+        raise _bad(option, raw, fix) from None
+    if value != value or value < minimum or value in (float("inf"),):  # NaN, too small, infinite
+        raise _bad(option, raw, fix)
+    return value
+
+
+def _directory_option(config: pytest.Config, option: str) -> Path | None:
+    raw = config.getoption(option)
+    if not raw:
+        return None
+    path = Path(raw)
+    if path.exists() and not path.is_dir():
+        raise ConfigError("names a file, not a folder", path=path, field=option,
+                          fix="give a folder (it is created when missing)")
+    return path
+
+
 def read_options(config: pytest.Config) -> JarvisOptions:
+    """Every option checked once, at start-up: a bad value is one ConfigError naming the option and the fix."""
     pairs: dict[str, str] = {}
     for item in config.getoption("--agent-option") or []:
         key, sep, value = item.partition("=")
-        if not sep or not key:
-            raise pytest.UsageError(f"--agent-option {item!r}: expected KEY=VALUE")
+        if not sep or not key.strip():
+            raise _bad("--agent-option", item, "write KEY=VALUE, e.g. --agent-option planner_model=qwen3-vl-plus")
         pairs[key.strip()] = value
     datasets = config.getoption("--dataset")
     if datasets is None:
         datasets = sorted(str(p) for p in (REPO_ROOT / "tasks" / "composed").glob("*.json"))
-    limits = LoopLimits(max_steps=config.getoption("--max-steps"), step_timeout=config.getoption("--step-timeout"),
-                        task_timeout=config.getoption("--task-timeout"))
-    if limits.max_steps < 1:
-        raise pytest.UsageError("--max-steps must be at least 1")
+    else:
+        for d in datasets:
+            if not Path(d).is_file():
+                raise ConfigError("no such dataset file", path=d, field="--dataset",
+                                  fix="name a JSON file written by `jarvis compose` (e.g. tasks/composed/*.json)")
+    limits = LoopLimits(
+        max_steps=int(_number(config, "--max-steps", int, minimum=1, fix="give a whole number of steps, 1 or more")),
+        step_timeout=float(_number(config, "--step-timeout", float, minimum=0.001,
+                                   fix="give a positive number of seconds, e.g. 300")),
+        task_timeout=float(_number(config, "--task-timeout", float, minimum=0.001,
+                                   fix="give a positive number of seconds, e.g. 3600")))
+    instances = int(_number(config, "--instances", int, minimum=1, fix="give 1 or more seeded instances per template"))
+    memory = config.getoption("--device-memory")
+    if memory is not None and not MEMORY.match(str(memory).strip()):
+        raise _bad("--device-memory", memory, "give a size such as 4g, 1536m or 2147483648")
+    cpus = None
+    if config.getoption("--device-cpus") is not None:
+        cpus = float(_number(config, "--device-cpus", float, minimum=0.01,
+                             fix=f"give a positive number of CPUs, e.g. 1.5 (this machine has {os.cpu_count()})"))
     agent = config.getoption("--agent")
     if config.getoption("--qc"):
         if agent not in (None, "oracle"):
-            raise pytest.UsageError(f"--qc runs the tasks' oracle solutions; drop --agent {agent}")
+            raise ConfigError(f"--qc runs the tasks' oracle solutions, not {agent!r}", field="--agent",
+                              fix=f"drop --agent {agent}")
         agent = "oracle"
-    results_dir = config.getoption("--results-dir")
-    resume = config.getoption("--resume")
-    if resume and not Path(resume).is_dir():
-        raise pytest.UsageError(f"--resume {resume}: no such run directory")
+    library = Path(config.getoption("--library"))
+    if not library.is_dir():
+        raise ConfigError("no such library folder", path=library, field="--library",
+                          fix="give a folder holding <platform>/*.json templates (default tasks/)")
+    results_dir = _directory_option(config, "--results-dir")
+    resume = _directory_option(config, "--resume")
+    if config.getoption("--resume") and resume is None:
+        raise ConfigError("empty run directory", field="--resume", fix="give reports/<run id>")
+    if resume is not None and not resume.is_dir():
+        raise ConfigError("no such run directory", path=resume, field="--resume",
+                          fix="give a folder under reports/ written by an earlier run")
+    if resume is not None and results_dir is not None and resume.resolve() != results_dir.resolve():
+        raise ConfigError("--resume and --results-dir name different folders", field="--results-dir",
+                          fix="drop --results-dir: a resumed run writes into the run it resumes")
     return JarvisOptions(
-        agent=agent, agent_options=pairs, limits=limits,
-        results_dir=Path(results_dir) if results_dir else None, resume=Path(resume) if resume else None,
-        device_memory=config.getoption("--device-memory"), device_cpus=config.getoption("--device-cpus"),
+        agent=agent, agent_options=pairs, limits=limits, results_dir=results_dir, resume=resume,
+        device_memory=str(memory).strip() if memory is not None else None, device_cpus=cpus,
         keep_devices=config.getoption("--keep-devices"), prewarm=not config.getoption("--no-prewarm"),
-        library=Path(config.getoption("--library")), datasets=[Path(p) for p in datasets],
-        instances=config.getoption("--instances"), transfer=config.getoption("--transfer"),
-        qc=config.getoption("--qc"),
+        library=library, datasets=[Path(p) for p in datasets], instances=instances,
+        transfer=config.getoption("--transfer"), qc=config.getoption("--qc"),
         endpoints={"planner": _endpoint(config, "planner"), "grounder": _endpoint(config, "grounder")},
+        allow_egress=config.getoption("--allow-egress"),
+        backends=_backends(config),
     )
+
+
+def _backends(config: pytest.Config) -> dict[str, str]:
+    """Backend choices per platform, each checked against the registry now."""
+    from jarvis_pytest.devices.backend import ALIASES, BUILTIN
+
+    out = {}
+    for platform in BUILTIN:
+        option = f"--{platform}-backend"
+        try:
+            name = config.getoption(option)
+        except ValueError:
+            continue
+        if name in (None, "", "auto"):
+            continue
+        name = ALIASES.get((platform, name), name)
+        if name not in BUILTIN[platform]:
+            raise _bad(option, name, f"choose one of auto, {', '.join(BUILTIN[platform])}")
+        out[platform] = name
+    return out
 
 
 def new_run_id() -> str:

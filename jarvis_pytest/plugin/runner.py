@@ -11,12 +11,12 @@ from typing import Any, Callable
 
 from jarvis_pytest.agents.protocol import Agent, TaskContext
 from jarvis_pytest.devices.actions import PLATFORMS
-from jarvis_pytest.devices.backend import (TRANSFER_ALIAS, TRANSFER_FOLDER, TRANSFER_PASSWORD, TRANSFER_PORT,
-                                           TRANSFER_USER)
+from jarvis_pytest.infra.transfer_server import (TRANSFER_ALIAS, TRANSFER_FOLDER, TRANSFER_PASSWORD, TRANSFER_PORT,
+                                                 TRANSFER_USER)
 from jarvis_pytest.errors import ConfigError, InfrastructureError
 from jarvis_pytest.plugin.evaluation import capture_baselines, evaluate_subtasks
 from jarvis_pytest.plugin.idle import idle_observation
-from jarvis_pytest.plugin.loop import LoopLimits, run_loop
+from jarvis_pytest.plugin.loop import LoopLimits, LoopOutcome, run_loop
 from jarvis_pytest.plugin.setup_steps import run_setup
 from jarvis_pytest.results.model import TaskResult
 from jarvis_pytest.results.writer import TaskRecorder
@@ -39,6 +39,7 @@ class RunContext:
     keep_devices: bool = False
     on_keep: Callable[[Any], None] | None = None
     qc: bool = False  # evaluate once right after set-up as well (the quality gate, `jarvis qc`)
+    egress: bool = False  # the devices may reach beyond their task network (--allow-egress)
 
     @property
     def agent_config(self) -> dict[str, Any]:
@@ -70,13 +71,15 @@ def run_task(task: dict[str, Any], ctx: RunContext) -> TaskResult:
     config = ctx.agent_config
     result = TaskResult(task_id=task["id"], category=task.get("category", "atomic"), platforms=list(platforms),
                         instruction=task["instruction"], status="running", agent=config,
-                        agent_key=agent_key(config, ctx.limits))
+                        agent_key=agent_key(config, ctx.limits), egress=ctx.egress)
     recorder = TaskRecorder(ctx.run_dir, result)
     t_start = time.monotonic()
     env = None
+    progress = LoopOutcome()
     try:
         env = ctx.environments.acquire(platforms)
         result.image_ids = dict(env.image_ids)
+        result.backends = dict(getattr(env, "backends", {}))
         t_boot = time.monotonic()
         run_setup(subtasks, env.devices)
         baselines = capture_baselines(subtasks, env.devices)
@@ -91,7 +94,7 @@ def run_task(task: dict[str, Any], ctx: RunContext) -> TaskResult:
         if hasattr(ctx.agent, "attach_devices"):
             ctx.agent.attach_devices(env.devices)
         idle = {p: idle_observation(p) for p in PLATFORMS if p not in env.devices}
-        outcome = run_loop(ctx.agent, env.devices, idle, recorder, ctx.limits)
+        outcome = run_loop(ctx.agent, env.devices, idle, recorder, ctx.limits, progress)
         for platform, device in sorted(env.devices.items()):
             recorder.screenshot(outcome.steps, platform, device.observe().screenshot_png)
         t_loop = time.monotonic()
@@ -104,6 +107,8 @@ def run_task(task: dict[str, Any], ctx: RunContext) -> TaskResult:
             env.close()
             result.qc_negatives = run_negatives(subtasks, platforms, ctx.environments)
         result.status = "passed" if _passed(result) else "failed"
+        if outcome.end_reason == "timeout":  # the task's time limit, not the agent's verdict: counted apart
+            result.status = "timeout"
         result.durations = {"boot": t_boot - t_start, "setup": t_setup - t_boot, "agent": outcome.agent_seconds,
                             "loop": t_loop - t_setup, "evaluate": t_eval - t_loop,
                             "total": time.monotonic() - t_start}
@@ -116,9 +121,13 @@ def run_task(task: dict[str, Any], ctx: RunContext) -> TaskResult:
         raise
     except BaseException as exc:  # interrupted or a harness bug: keep what we have, marked as an error
         result.status, result.end_reason = "error", "error"
-        result.error = f"{exc.__class__.__name__}: {exc}"
+        result.error = ("interrupted (the run was stopped)" if isinstance(exc, KeyboardInterrupt)
+                        else f"{exc.__class__.__name__}: {exc}")
         raise
     finally:
+        if result.status in ("error", "running"):  # whatever ended the task, the steps taken and tokens spent stay
+            result.steps, result.usage = progress.steps, dict(progress.usage)
+            result.durations.setdefault("agent", progress.agent_seconds)
         recorder.finish()
         if env is not None:
             if ctx.keep_devices and ctx.on_keep:

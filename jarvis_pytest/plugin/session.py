@@ -1,14 +1,17 @@
-"""The state of one benchmark session (per process) and the logic behind the plugin's hooks.
+"""The benchmark session: one object per pytest process, registered as a plugin (as pytest-xdist's `DSession`),
+that owns the run's state and implements the plugin's hooks.
 
-The controller (the only process without xdist, or the xdist controller) chooses the run directory and passes
-it to workers; workers run tasks and attach a compact result to `report.user_properties`; the controller
-gathers those, writes `summary.json`/`summary.md`, prints the tables and feeds the HTML report.
+The controller (the only process without xdist, or the xdist controller) checks the options, the agent and its
+model endpoints once, chooses the run directory, writes `run.json` (with a heartbeat) and, at the end, the
+summary of everything the run holds on disk. Workers run tasks and attach a compact result to
+`report.user_properties`. Whatever stops the session — the end, Ctrl-C, SIGTERM — it removes the run's devices
+and says in `run.json` and the summary how far it got; the next run removes what killed runs left.
 """
 
 from __future__ import annotations
 
+import signal
 import sys
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -19,24 +22,55 @@ from jarvis_pytest.plugin import cases
 from jarvis_pytest.plugin.evaluation import failure_message, qc_message
 from jarvis_pytest.plugin.options import REPO_ROOT, JarvisOptions, new_run_id, read_options
 from jarvis_pytest.plugin.runner import RunContext, agent_key, run_task, task_platforms
+from jarvis_pytest.results import run_state
 from jarvis_pytest.results.model import TaskResult
-from jarvis_pytest.results.writer import now_iso, read_result, write_json_atomic
+from jarvis_pytest.results.writer import read_result
 
-PROPERTY = "jarvis"
+PROPERTY = cases.PROPERTY
+PLUGIN_NAME = "jarvis-session"
 
 
-@dataclass
+def get(config: pytest.Config) -> "JarvisSession":
+    """The session of this pytest process."""
+    return config.pluginmanager.get_plugin(PLUGIN_NAME)
+
+
+def _task_of(item: pytest.Item) -> dict[str, Any] | None:
+    """The task of a task case (None for other items, and for an empty parameter set)."""
+    task = getattr(getattr(item, "callspec", None), "params", {}).get("jarvis_task")
+    return task if isinstance(task, dict) else None
+
+
+def _sigterm_as_interrupt() -> None:
+    """SIGTERM stops the session like Ctrl-C (devices removed, results kept), unless someone else handles it."""
+    def handler(signum, frame):
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    try:
+        if signal.getsignal(signal.SIGTERM) in (signal.SIG_DFL, None):
+            signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread
+        pass
+
+
 class JarvisSession:
-    options: JarvisOptions
-    run_dir: Path
-    is_controller: bool
-    worker: str
-    agent: Any = None
-    context: RunContext | None = None
-    results: dict[str, TaskResult] = field(default_factory=dict)  # controller: task id → compact result
-    _params: dict[str, list[Any]] = field(default_factory=dict)
-    started: str = field(default_factory=now_iso)
+    """Options, run directory, agent and devices of this process, and the plugin hooks that use them."""
 
+    def __init__(self, config: pytest.Config, options: JarvisOptions, run_dir: Path, worker: str | None):
+        self.config = config
+        self.options = options
+        self.run_dir = run_dir
+        self.is_controller = worker is None
+        self.worker = worker or "main"
+        self.agent: Any = None
+        self.context: RunContext | None = None
+        self.state: run_state.RunState | None = None
+        self.new_run = options.resume is None
+        self.interrupted = False
+        self.summary = None  # the controller's rollup, written at the end
+        self._params: dict[str, list[Any]] = {}
+
+    # -- start-up (controller) ------------------------------------------------------------------------------
     def ensure_agent(self):
         if self.agent is None:
             from jarvis_pytest.agents.registry import load_agent
@@ -50,15 +84,97 @@ class JarvisSession:
                 raise pytest.UsageError(f"--agent {self.options.agent}: {exc}") from None
         return self.agent
 
-    def params(self, kind: str, config: pytest.Config) -> list[Any]:
+    def params(self, kind: str) -> list[Any]:
         """The pytest params of the atomic or composed tasks (loaded once; a bad task file is a usage error)."""
         if kind not in self._params:
             try:
-                self._params[kind] = cases.params(kind, self.options, config)
+                self._params[kind] = cases.params(kind, self.options, self.config)
             except ConfigError as exc:
                 raise pytest.UsageError(f"bad task data: {exc}") from None
         return self._params[kind]
 
+    def all_tasks(self) -> list[dict[str, Any]]:
+        return [p.values[0] for kind in ("atomic", "composed") for p in self.params(kind)]
+
+    def start(self) -> None:
+        """Everything that can be wrong is found now, once, before any device boots: the task data, the agent,
+        its model endpoints (one real request each), the drive image, a run directory to resume."""
+        agent = self.ensure_agent()
+        tasks = self.all_tasks()
+        preflight = getattr(agent, "preflight", None)
+        if preflight is not None:
+            try:
+                preflight()
+            except JarvisError as exc:
+                raise pytest.UsageError(f"--agent {self.options.agent}: {exc}") from None
+        if self.options.transfer not in (None, "copyparty"):
+            _check_transfer_image(self.options.transfer)
+        key = agent_key(agent.config(), self.options.limits)
+        if self.options.resume is not None:
+            self._check_resume(key, agent.config(), tasks)
+        _remove_orphans()
+        self.state = run_state.RunState(self.run_dir, redacted_argv(sys.argv[1:]), resumed=not self.new_run)
+        self.state.start(agent=agent.config(), agent_key=key, egress=self.options.allow_egress,
+                         options={"max_steps": self.options.limits.max_steps, "instances": self.options.instances})
+
+    def _check_resume(self, key: str, agent_config: dict[str, Any], tasks: list[dict[str, Any]]) -> None:
+        run_dir = self.run_dir
+        fix_new = "or start a new run (drop --resume)"
+        if not run_state.is_run_dir(run_dir):
+            raise ConfigError("not a run directory of jarvis-pytest (no run.json or plan.json)", path=run_dir,
+                              field="--resume", fix="give a folder under reports/ written by an earlier run")
+        meta = run_state.read_json(run_dir / "run.json") or {}
+        if run_state.liveness(meta) == "running":
+            raise ConfigError(f"this run is still going (pid {meta.get('pid')} on {meta.get('host')})", path=run_dir,
+                              field="--resume", fix="wait for it to end, or stop it (Ctrl-C) first")
+        stored_keys = {meta["agent_key"]} if meta.get("agent_key") else set()
+        if not stored_keys:  # a run from before run.json kept the key: its results do
+            from jarvis_pytest.report.rollup import load_results
+
+            stored_keys = {r.agent_key for r in load_results(run_dir)[0] if r.agent_key}
+        if stored_keys and stored_keys != {key}:
+            used = meta.get("agent") or "another configuration"
+            raise ConfigError(f"the run was made with agent {used}, not {agent_config}", path=run_dir,
+                              field="--resume", fix="resume with the same --agent, models and --max-steps, "
+                              + fix_new)
+        digests = run_state.read_plan(run_dir)["digests"]
+        changed = sorted(t["id"] for t in tasks if t["id"] in digests and digests[t["id"]] != run_state.task_digest(t))
+        if changed:
+            more = f" and {len(changed) - 3} more" if len(changed) > 3 else ""
+            raise ConfigError(f"tasks changed since the run was planned: {', '.join(changed[:3])}{more}",
+                              path=run_dir, field="--resume", fix="resume with the same library, datasets and "
+                              "options (--library, --dataset), " + fix_new)
+
+    # -- collection -----------------------------------------------------------------------------------------
+    def pytest_generate_tests(self, metafunc: pytest.Metafunc) -> None:
+        if "jarvis_task" in metafunc.fixturenames:
+            kind = getattr(metafunc.module, "JARVIS_TASKS", "atomic")
+            metafunc.parametrize("jarvis_task", self.params(kind))
+
+    def pytest_collection_modifyitems(self, session: pytest.Session, config: pytest.Config,
+                                      items: list[pytest.Item]) -> None:
+        jarvis_items = [i for i in items if _task_of(i) is not None]
+        if not jarvis_items:
+            return
+        if not self.options.agent:
+            raise pytest.UsageError("choose an agent with --agent NAME (e.g. --agent oracle to check the tasks, "
+                                    "--agent holo2 with --planner-base-url/--grounder-base-url for a model)")
+        # Longest tasks first (more subtasks), ties by id: keeps xdist workers busy to the end, deterministic.
+        order = {id(i): (-len(_task_of(i)["formatted_subtasks"]), i.nodeid) for i in jarvis_items}
+        positions = [n for n, i in enumerate(items) if id(i) in order]
+        for pos, item in zip(positions, sorted(jarvis_items, key=lambda i: order[id(i)])):
+            items[pos] = item
+
+    def pytest_collection_finish(self, session: pytest.Session) -> None:
+        """plan.json gains the tasks this session will run (the dashboard shows those not started as pending;
+        the summary counts those never run). Every xdist worker collects the same items: each writes the same."""
+        if self.config.option.collectonly or not self.options.agent:
+            return
+        tasks = [t for t in map(_task_of, session.items) if t is not None]
+        if tasks and (self.state is not None or not self.is_controller):
+            run_state.merge_plan(self.run_dir, tasks)
+
+    # -- running --------------------------------------------------------------------------------------------
     def ensure_context(self) -> RunContext:
         if self.context is None:
             from jarvis_pytest.plugin.environments import make_environments
@@ -67,22 +183,89 @@ class JarvisSession:
                 run_dir=self.run_dir, agent=self.ensure_agent(),
                 environments=make_environments(self.options, run_id=self.run_dir.name, worker=self.worker),
                 limits=self.options.limits, keep_devices=self.options.keep_devices, on_keep=_print_kept,
-                qc=self.options.qc,
+                qc=self.options.qc, egress=self.options.allow_egress,
             )
         return self.context
 
+    @pytest.hookimpl(hookwrapper=True)
+    def pytest_runtest_protocol(self, item: pytest.Item, nextitem: pytest.Item | None):
+        if self.options.prewarm and self.context is not None and nextitem is not None:
+            task = _task_of(nextitem)
+            if task is not None:
+                self.context.environments.prewarm(task_platforms(task))
+        yield
+
+    def run_case(self, request: pytest.FixtureRequest, task: dict[str, Any]) -> TaskResult:
+        agent = self.ensure_agent()
+        if self.options.resume:
+            stored = read_result(self.run_dir, task["id"])
+            key = agent_key(agent.config(), self.options.limits)
+            if stored is not None and stored.status in ("passed", "failed") and stored.agent_key == key:
+                request.node.user_properties.append((PROPERTY, _compact(stored, self.run_dir) | {"resumed": True}))
+                return stored
+        ctx = self.ensure_context()
+        try:
+            result = run_task(task, ctx)
+        except (InfrastructureError, ConfigError) as exc:
+            stored = read_result(self.run_dir, task["id"])
+            if stored is not None:
+                request.node.user_properties.append((PROPERTY, _compact(stored, self.run_dir)))
+            pytest.fail(f"infrastructure error ({exc.__class__.__name__}): {exc}", pytrace=False)
+        request.node.user_properties.append((PROPERTY, _compact(result, self.run_dir)))
+        if result.status == "timeout":
+            pytest.fail(f"timeout: the task's time limit ({self.options.limits.task_timeout:g} s) passed after "
+                        f"{result.steps} steps (counted apart from the rates)", pytrace=False)
+        return result
+
+    def pytest_keyboard_interrupt(self, excinfo) -> None:
+        self.interrupted = True
+
+    # -- the end --------------------------------------------------------------------------------------------
     def close(self) -> None:
         if self.context is not None:
             self.context.environments.close()
             self.context = None
 
+    @pytest.hookimpl(hookwrapper=True)
+    def pytest_sessionfinish(self, session: pytest.Session, exitstatus):
+        """First (before pytest-html writes its report): remove this process's devices; the controller marks the
+        run finished or interrupted and writes the summary of everything the run holds. Last (after xdist stopped
+        its workers): the controller removes whatever of the run is still there (a worker stopped in the middle
+        of a task may leave its devices)."""
+        self.close()
+        run_id = self.run_dir.name
+        if self.is_controller and self.state is not None:
+            interrupted = self.interrupted or int(exitstatus) == int(pytest.ExitCode.INTERRUPTED)
+            self.state.finish(interrupted, int(exitstatus))
+            if self.new_run and not (self.run_dir / "plan.json").exists() and not (self.run_dir / "tasks").exists():
+                (self.run_dir / "run.json").unlink(missing_ok=True)  # nothing was selected: no empty run left
+                self.state = None
+            else:
+                self.summary = self.write_summary()
+        yield
+        if self.is_controller and (self.state is not None or self.interrupted) and not self.options.keep_devices:
+            _remove_run_resources(run_id)
 
-SESSION_KEY = pytest.StashKey[JarvisSession]()
-_CURRENT: JarvisSession | None = None  # this process's session, for hooks that get no config (logreport)
+    def write_summary(self):
+        """summary.json and summary.md over every result of the run on disk and every task it planned."""
+        from jarvis_pytest.report.rollup import load_results, write_summary
 
+        results, _ = load_results(self.run_dir)
+        planned = run_state.read_plan(self.run_dir)["categories"]
+        agent = (self.state.meta.get("agent") if self.state else None) or (results[0].agent if results else {})
+        return write_summary(self.run_dir, results, agent, planned=planned)
 
-def get(config: pytest.Config) -> JarvisSession:
-    return config.stash[SESSION_KEY]
+    def pytest_terminal_summary(self, terminalreporter, exitstatus, config: pytest.Config) -> None:
+        if not self.is_controller or self.summary is None:
+            return
+        from jarvis_pytest.report.rollup import render_terminal
+
+        terminalreporter.section("jarvis: task success rates")
+        terminalreporter.write_line(render_terminal(self.summary))
+        terminalreporter.write_line(f"results: {self.run_dir}")
+        html = getattr(config.option, "htmlpath", None)
+        if html:
+            terminalreporter.write_line(f"report:  {Path(html).resolve()}")
 
 
 class _XdistHooks:
@@ -115,85 +298,61 @@ def _check_transfer_image(flavour: str) -> None:
             "to one you have") from None
 
 
+def _remove_orphans() -> None:
+    """What runs whose process is gone left on this host's engine (containers, networks); live runs are safe."""
+    from jarvis_pytest.infra.cleanup import cleanup
+
+    try:
+        counts = cleanup(orphans_only=True)
+    except JarvisError as exc:
+        print(f"[jarvis] could not remove what earlier runs left: {exc}", file=sys.stderr, flush=True)
+        return
+    if any(counts.values()):
+        print("[jarvis] removed what killed runs left: " + ", ".join(f"{v} {k}" for k, v in counts.items()),
+              file=sys.stderr, flush=True)
+
+
+def _remove_run_resources(run_id: str) -> None:
+    from jarvis_pytest.infra.cleanup import cleanup
+
+    try:
+        counts = cleanup(run_id)
+    except JarvisError as exc:
+        print(f"[jarvis] {exc}; run `jarvis cleanup --run {run_id}`", file=sys.stderr, flush=True)
+        return
+    if any(counts.values()):
+        print(f"[jarvis] removed what the stopped tasks left: " + ", ".join(f"{v} {k}" for k, v in counts.items()),
+              file=sys.stderr, flush=True)
+
+
 def configure(config: pytest.Config) -> None:
+    """Create this process's session and register it; the controller of a benchmark run starts the run."""
     try:
         options = read_options(config)
     except ConfigError as exc:
         raise pytest.UsageError(str(exc)) from None
     workerinput = getattr(config, "workerinput", None)
     if workerinput is not None:
-        run_dir = Path(workerinput["jarvis_run_dir"])
-        worker = workerinput.get("workerid", "gw?")
+        session = JarvisSession(config, options, Path(workerinput["jarvis_run_dir"]), workerinput.get("workerid", "gw?"))
     else:
         run_dir = (options.resume or options.results_dir or REPO_ROOT / "reports" / new_run_id()).resolve()
-        worker = "main"
-    session = JarvisSession(options=options, run_dir=run_dir, is_controller=workerinput is None, worker=worker)
-    config.stash[SESSION_KEY] = session
-    global _CURRENT
-    _CURRENT = session
-    if session.is_controller and config.pluginmanager.hasplugin("xdist"):
-        config.pluginmanager.register(_XdistHooks(run_dir), "jarvis-xdist")
-    if session.is_controller and options.agent:
-        agent = session.ensure_agent()  # an unknown agent or a bad option is one clear error, now
-        session.params("atomic", config), session.params("composed", config)  # so is a malformed task file
-        preflight = getattr(agent, "preflight", None)
-        if preflight is not None:
-            try:
-                preflight()
-            except JarvisError as exc:
-                raise pytest.UsageError(f"--agent {options.agent}: {exc}") from None
-        if options.transfer not in (None, "copyparty"):
-            _check_transfer_image(options.transfer)
+        session = JarvisSession(config, options, run_dir, None)
+    config.pluginmanager.register(session, PLUGIN_NAME)
+    _sigterm_as_interrupt()
+    if not session.is_controller:
+        return
+    if config.pluginmanager.hasplugin("xdist"):
+        config.pluginmanager.register(_XdistHooks(session.run_dir), "jarvis-xdist")
+    if options.agent and not config.option.collectonly:
+        try:
+            session.start()
+        except ConfigError as exc:
+            raise pytest.UsageError(str(exc)) from None
         if config.pluginmanager.hasplugin("html") and not getattr(config.option, "htmlpath", None):
-            config.option.htmlpath = str(run_dir / "report.html")
+            config.option.htmlpath = str(session.run_dir / "report.html")
     from jarvis_pytest.plugin import html
 
-    html.register(config)
-
-
-def parametrize(metafunc: pytest.Metafunc) -> None:
-    kind = getattr(metafunc.module, "JARVIS_TASKS", "atomic")
-    metafunc.parametrize("jarvis_task", get(metafunc.config).params(kind, metafunc.config))
-
-
-def _task_of(item: pytest.Item) -> dict[str, Any] | None:
-    """The task of a task case (None for other items, and for an empty parameter set)."""
-    task = getattr(getattr(item, "callspec", None), "params", {}).get("jarvis_task")
-    return task if isinstance(task, dict) else None
-
-
-def check_collected(config: pytest.Config, items: list[pytest.Item]) -> None:
-    jarvis_items = [i for i in items if _task_of(i) is not None]
-    if not jarvis_items:
-        return
-    session = get(config)
-    if not session.options.agent:
-        raise pytest.UsageError("choose an agent with --agent NAME (e.g. --agent oracle to check the tasks, "
-                                "--agent holo2 with --planner-base-url/--grounder-base-url for a model)")
-    # Longest tasks first (more subtasks), ties by id: keeps xdist workers busy to the end, and is deterministic.
-    order = {id(i): (-len(_task_of(i)["formatted_subtasks"]), i.nodeid) for i in jarvis_items}
-    positions = [n for n, i in enumerate(items) if id(i) in order]
-    for pos, item in zip(positions, sorted(jarvis_items, key=lambda i: order[id(i)])):
-        items[pos] = item
-
-
-def write_plan(session_: pytest.Session) -> None:
-    """`plan.json`: the ids of the tasks this session will run (the dashboard shows those not started as
-    pending). Every xdist worker collects the same items, so whichever writes it writes the same file."""
-    ids = sorted(t["id"] for t in map(_task_of, session_.items) if t is not None)
-    if ids:
-        run_dir = get(session_.config).run_dir
-        run_dir.mkdir(parents=True, exist_ok=True)
-        write_json_atomic(run_dir / "plan.json", {"tasks": ids, "written": now_iso()})
-
-
-def prewarm_next(item: pytest.Item, nextitem: pytest.Item | None) -> None:
-    session = get(item.config)
-    if not session.options.prewarm or session.context is None or nextitem is None:
-        return
-    task = _task_of(nextitem)
-    if task is not None:
-        session.context.environments.prewarm(task_platforms(task))
+    html.register(config, session)
 
 
 def _compact(result: TaskResult, run_dir: Path) -> dict[str, Any]:
@@ -206,27 +365,6 @@ def _compact(result: TaskResult, run_dir: Path) -> dict[str, Any]:
     return data
 
 
-def run_case(request: pytest.FixtureRequest, task: dict[str, Any]) -> TaskResult:
-    session = get(request.config)
-    agent = session.ensure_agent()
-    if session.options.resume:
-        stored = read_result(session.run_dir, task["id"])
-        key = agent_key(agent.config(), session.options.limits)
-        if stored is not None and stored.status in ("passed", "failed") and stored.agent_key == key:
-            request.node.user_properties.append((PROPERTY, _compact(stored, session.run_dir) | {"resumed": True}))
-            return stored
-    ctx = session.ensure_context()
-    try:
-        result = run_task(task, ctx)
-    except (InfrastructureError, ConfigError) as exc:
-        stored = read_result(session.run_dir, task["id"])
-        if stored is not None:
-            request.node.user_properties.append((PROPERTY, _compact(stored, session.run_dir)))
-        pytest.fail(f"infrastructure error ({exc.__class__.__name__}): {exc}", pytrace=False)
-    request.node.user_properties.append((PROPERTY, _compact(result, session.run_dir)))
-    return result
-
-
 def assert_task_passed(result: TaskResult) -> None:
     """The test body of every task case: fail with each failed subtask and its evaluators' reasons."""
     if result.status == "passed":
@@ -234,14 +372,6 @@ def assert_task_passed(result: TaskResult) -> None:
     if result.qc_initial is not None:
         pytest.fail(qc_message(result), pytrace=False)
     pytest.fail(failure_message(result.subtasks, result.end_reason, result.steps), pytrace=False)
-
-
-def collect_report(report: pytest.TestReport) -> None:
-    for name, value in report.user_properties:
-        if name != PROPERTY:
-            continue
-        if _CURRENT is not None and (report.when == "call" or (report.when == "setup" and report.failed)):
-            _CURRENT.results[value["task_id"]] = TaskResult.model_validate(value)
 
 
 SECRET_OPTION = ("key", "token", "secret", "password")
@@ -262,42 +392,6 @@ def redacted_argv(argv: list[str]) -> list[str]:
             out.append(arg)
         hide_next = secret and not eq
     return out
-
-
-def _write_run_files(session: JarvisSession) -> None:
-    from jarvis_pytest.report.rollup import write_summary
-
-    session.run_dir.mkdir(parents=True, exist_ok=True)
-    results = [session.results[k] for k in sorted(session.results)]
-    agent = results[0].agent if results else {}
-    write_json_atomic(session.run_dir / "run.json", {
-        "run_id": session.run_dir.name, "agent": agent, "started": session.started, "finished": now_iso(),
-        "argv": redacted_argv(sys.argv[1:]), "tasks": len(results),
-        "options": {"max_steps": session.options.limits.max_steps, "instances": session.options.instances},
-    })
-    write_summary(session.run_dir, results, agent)
-
-
-def finish(session_: pytest.Session) -> None:
-    session = get(session_.config)
-    session.close()
-    if session.is_controller and session.results:
-        _write_run_files(session)
-
-
-def terminal_summary(terminalreporter, config: pytest.Config) -> None:
-    session = get(config)
-    if not (session.is_controller and session.results):
-        return
-    from jarvis_pytest.report.rollup import render_terminal, rollup
-
-    results = [session.results[k] for k in sorted(session.results)]
-    terminalreporter.section("jarvis: task success rates")
-    terminalreporter.write_line(render_terminal(rollup(results)))
-    terminalreporter.write_line(f"results: {session.run_dir}")
-    html = getattr(config.option, "htmlpath", None)
-    if html:
-        terminalreporter.write_line(f"report:  {Path(html).resolve()}")
 
 
 def _print_kept(env: Any) -> None:

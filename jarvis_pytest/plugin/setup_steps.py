@@ -20,17 +20,18 @@ FIXTURE_FILES = Path(__file__).resolve().parents[2] / "fixtures" / "files"
 
 def _upload(device: Device, step: dict[str, Any]) -> None:
     path = step["path"]
-    if "fixture" in step:
-        src = FIXTURE_FILES / step["fixture"]
-        if not src.is_file():
-            raise ConfigError(f"fixture file {src} does not exist", field="config.upload_file.fixture",
-                              fix="add the file under fixtures/files/ or fix the name")
-        data = src.read_bytes()
-    elif step.get("generator"):
+    if step.get("fixture") is not None:
+        from jarvis_pytest.tasks.library import fixture_problem
+
+        problem = fixture_problem(step["fixture"], FIXTURE_FILES, must_exist=True)
+        if problem:  # checked when the task was loaded; checked again where the file is read
+            raise ConfigError(problem, field="config.upload_file.fixture", fix="use a file under fixtures/files/")
+        data = (FIXTURE_FILES / step["fixture"]).read_bytes()
+    elif step.get("generator") is not None:
         from jarvis_pytest.generators import generate
 
         data = generate(step["generator"], step.get("args") or {})
-    elif "content" in step:
+    elif step.get("content") is not None:
         data = str(step["content"]).encode("utf-8")
     else:
         raise ConfigError("upload_file needs `fixture` or `content`", field="config.upload_file",
@@ -50,7 +51,7 @@ def _launch(device: Device, step: dict[str, Any]) -> None:
 
 
 def _open(device: Device, step: dict[str, Any]) -> None:
-    device.launch("xdg-open", step["path"])
+    device.open(step["path"])
 
 
 def _sleep(device: Device, step: dict[str, Any]) -> None:

@@ -10,8 +10,9 @@ What is computed (paper, Experiments, "Metrics"; tables `main_results` and `conf
 - 95 % percentile-bootstrap intervals over tasks. Every group of tasks has its own `random.Random` seeded from
   (seed, group name), and TSR and SSR of a group share the same resamples.
 - Success against the number of subtasks (the paper's figure), over all composed tasks and per category.
-- Tasks with status "error" (infrastructure failures) are left out of every rate and counted per category. Tasks
-  still "running" are left out too and counted as unfinished.
+- Tasks with status "error" (infrastructure failures) or "timeout" (the task's time limit passed) are left out of
+  every rate and counted per category. Tasks still "running" (their session was stopped) are left out too and
+  counted as unfinished, and tasks planned but never started as not run.
 
 Results are sorted by task id before anything is computed. The same set of results therefore gives the same
 summary.json byte for byte, whatever order they arrive in (one process, or xdist workers).
@@ -30,16 +31,17 @@ from typing import Any, Sequence
 
 from pydantic import BaseModel, Field
 
+from jarvis_pytest.devices.platforms import PLATFORM_NAMES, spec
 from jarvis_pytest.results.model import TaskResult
 
-PLATFORMS = ("android", "windows", "ubuntu")
+PLATFORMS = PLATFORM_NAMES
 COMPOSED = ("sw", "mi", "md")
 CATEGORIES = ("atomic", *COMPOSED)
 LEVEL = 0.95
 DASH = "–"
-_LABEL = {"android": "Android", "windows": "Windows", "ubuntu": "Ubuntu", "overall": "Overall",
+_LABEL = {**{p: spec(p).label for p in PLATFORM_NAMES}, "overall": "Overall",
           "atomic": "Atomic", "sw": "SW", "mi": "MI", "md": "MD"}
-_STATUS_RANK = {"passed": 3, "failed": 3, "error": 2, "running": 1}
+_STATUS_RANK = {"passed": 3, "failed": 3, "timeout": 2, "error": 2, "running": 1}
 
 
 # ----------------------------------------------------------------------------------------------------- models
@@ -101,6 +103,8 @@ class Summary(BaseModel):
     by_subtasks_category: dict[str, list[BySubtasks]] = Field(default_factory=dict)  # sw, mi, md
     errors: dict[str, int] = Field(default_factory=dict)  # per category; excluded from every rate
     unfinished: dict[str, int] = Field(default_factory=dict)  # status "running", per category; ignored
+    timeouts: dict[str, int] = Field(default_factory=dict)  # status "timeout", per category; excluded
+    not_run: dict[str, int] = Field(default_factory=dict)  # planned (plan.json) but no result, per category
     tasks: int = 0  # tasks counted in the rates
     warnings: list[str] = Field(default_factory=list)  # inconsistent or unexpected results
     seed: int = 0
@@ -196,14 +200,21 @@ def _check(r: TaskResult, warnings: list[str]) -> None:
 
 
 def rollup(results: Sequence[TaskResult], *, seed: int = 0, n_boot: int = 2000,
-           agent: str | None = None) -> Summary:
-    """The summary tables of `results`, in any order (see the module docstring for the definitions)."""
+           agent: str | None = None, planned: dict[str, str] | None = None) -> Summary:
+    """The summary tables of `results`, in any order (see the module docstring for the definitions); `planned`
+    (task id → category) are the tasks the run meant to run: those without a result are counted as not run."""
     if n_boot < 1:
         raise ValueError(f"n_boot must be at least 1, not {n_boot}")
     warnings: list[str] = []
     ordered = _dedupe(results, warnings)
     errors = dict.fromkeys(CATEGORIES, 0)
     unfinished = dict.fromkeys(CATEGORIES, 0)
+    timeouts = dict.fromkeys(CATEGORIES, 0)
+    not_run = dict.fromkeys(CATEGORIES, 0)
+    have = {r.task_id for r in ordered}
+    for tid, cat in sorted((planned or {}).items()):
+        if tid not in have and cat.lower() in not_run:
+            not_run[cat.lower()] += 1
     done: dict[str, list[TaskResult]] = {c: [] for c in CATEGORIES}
     unknown: dict[str, int] = {}
     for r in ordered:
@@ -212,6 +223,8 @@ def rollup(results: Sequence[TaskResult], *, seed: int = 0, n_boot: int = 2000,
             unknown[r.category] = unknown.get(r.category, 0) + 1
         elif r.status == "error":
             errors[cat] += 1
+        elif r.status == "timeout":
+            timeouts[cat] += 1
         elif r.status == "running":
             unfinished[cat] += 1
         else:
@@ -232,7 +245,7 @@ def rollup(results: Sequence[TaskResult], *, seed: int = 0, n_boot: int = 2000,
         agent=agent, atomic=atomic, composed=composed,
         overall={"tsr": tsr("all", everything), "ssr": composed["overall"].ssr},
         by_subtasks=_curve(composed_all), by_subtasks_category={c: _curve(done[c]) for c in COMPOSED},
-        errors=errors, unfinished=unfinished, tasks=len(everything), warnings=sorted(warnings),
+        errors=errors, unfinished=unfinished, timeouts=timeouts, not_run=not_run, tasks=len(everything), warnings=sorted(warnings),
         seed=seed, n_boot=n_boot, level=LEVEL)
 
 
@@ -265,6 +278,7 @@ def _main_cells(s: Summary) -> tuple[list[Rate], list[Rate | SubtaskRate]]:
 
 def _notes(s: Summary) -> list[str]:
     n_err, n_run = sum(s.errors.values()), sum(s.unfinished.values())
+    n_out, n_not = sum(s.timeouts.values()), sum(s.not_run.values())
     return [
         "Notes:",
         "",
@@ -273,7 +287,9 @@ def _notes(s: Summary) -> list[str]:
         "passed/total. The pooled ratio k/n is given in Table 2 and differs when tasks have different numbers of "
         "subtasks. `–`: no task in the cell.",
         f"- Tasks that ended in an infrastructure error (status `error`, {n_err} here) are excluded from every "
-        f"rate and counted apart, per category; unfinished tasks (status `running`, {n_run} here) are ignored.",
+        f"rate and counted apart, per category; so are tasks that ran out of their time limit (status `timeout`, "
+        f"{n_out} here). Unfinished tasks (status `running`: their session was stopped, {n_run} here) and tasks "
+        f"planned but never started ({n_not} here) are not counted; `--resume` runs them.",
         f"- Intervals: {100 * s.level:g} % percentile bootstrap over tasks, {s.n_boot} resamples, seed {s.seed}.",
         "",
     ]
@@ -284,8 +300,9 @@ def render_markdown(s: Summary) -> str:
     name = s.agent or "agent"
     atomic, multi = _main_cells(s)
     out = [f"# JarvisGUI results{f' — {s.agent}' if s.agent else ''}", "",
-           f"Tasks counted: {s.tasks}. Not counted: errors {sum(s.errors.values())}, "
-           f"unfinished {sum(s.unfinished.values())}.", "",
+           f"Tasks counted: {s.tasks}. Not counted: errors {sum(s.errors.values())}, timeouts "
+           f"{sum(s.timeouts.values())}, unfinished {sum(s.unfinished.values())}, never ran "
+           f"{sum(s.not_run.values())}.", "",
            "## Table 1a. Atomic tasks: TSR (%)", ""]
     out += _md_table(["Model", "Android", "Windows", "Ubuntu", "Overall"], [[name, *(c.text() for c in atomic)]])
     out += ["## Table 1b. Multi-tasks: TSR and SSR (%)", ""]
@@ -314,7 +331,8 @@ def render_markdown(s: Summary) -> str:
     out += ["## Not counted", ""]
     out += _md_table(["", *(_LABEL[c] for c in CATEGORIES), "Total"],
                      [[label, *(str(d.get(c, 0)) for c in CATEGORIES), str(sum(d.values()))]
-                      for label, d in (("Errors (excluded)", s.errors), ("Unfinished", s.unfinished))])
+                      for label, d in (("Errors (excluded)", s.errors), ("Timeouts (excluded)", s.timeouts),
+                                       ("Unfinished", s.unfinished), ("Never ran", s.not_run))])
     out += _notes(s)
     if s.warnings:
         out += ["Warnings:", "", *(f"- {w}" for w in s.warnings), ""]
@@ -334,7 +352,8 @@ def render_terminal(s: Summary) -> str:
         lines.append("by subtasks: " + "  ".join(f"{b.subtasks}: {_pct_counts(b.tsr, b.k, b.n)}"
                                                   for b in s.by_subtasks))
     errs = ", ".join(f"{c} {n}" for c, n in s.errors.items() if n) or "0"
-    lines.append(f"{s.tasks} tasks counted; errors (not in rates): {errs}; unfinished: {sum(s.unfinished.values())}"
+    lines.append(f"{s.tasks} tasks counted; errors (not in rates): {errs}; timeouts: {sum(s.timeouts.values())}; "
+                 f"unfinished: {sum(s.unfinished.values())}; never ran: {sum(s.not_run.values())}"
                  "; SSR = mean of per-task ratios, (k/n) = subtasks")
     lines += [f"warning: {w}" for w in s.warnings]
     return "\n".join(lines)
@@ -371,11 +390,12 @@ def summary_json(summary: Summary) -> str:
 
 
 def write_summary(run_dir: Path, results: Sequence[TaskResult], agent: dict[str, Any] | None = None, *,
-                  seed: int = 0, n_boot: int = 2000) -> Summary:
+                  seed: int = 0, n_boot: int = 2000, planned: dict[str, str] | None = None) -> Summary:
     """Write `summary.json` and `summary.md` of `results` into `run_dir`, each through a temporary file and a
     rename; returns the summary. `agent` is the agent configuration; its "name" is shown."""
     name = (agent or {}).get("name")
-    summary = rollup(results, seed=seed, n_boot=n_boot, agent=str(name) if name is not None else None)
+    summary = rollup(results, seed=seed, n_boot=n_boot, agent=str(name) if name is not None else None,
+                     planned=planned)
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     _write_atomic(run_dir / "summary.json", summary_json(summary))

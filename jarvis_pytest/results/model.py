@@ -15,7 +15,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, Field
 
-Status = Literal["running", "passed", "failed", "error"]
+Status = Literal["running", "passed", "failed", "error", "timeout"]
 
 
 class EvaluatorVerdict(BaseModel):
@@ -87,6 +87,8 @@ class TaskResult(BaseModel):
     steps: int = 0
     end_reason: str = ""  # done | fail | max_steps | timeout | error
     error: str | None = None  # infrastructure error text when status == "error"
+    egress: bool = False  # the devices could reach beyond their task network (--allow-egress)
+    backends: dict[str, str] = Field(default_factory=dict)  # platform → the backend that ran it, e.g. "wine"
     durations: dict[str, float] = Field(default_factory=dict)  # boot, setup, agent, evaluate, total (seconds)
     usage: dict[str, int] = Field(default_factory=dict)
     image_ids: dict[str, str] = Field(default_factory=dict)

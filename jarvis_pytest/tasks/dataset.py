@@ -17,7 +17,9 @@ from pydantic import ValidationError
 
 from jarvis_pytest.errors import ConfigError
 from jarvis_pytest.tasks.graph import task_problems
-from jarvis_pytest.tasks.library import pydantic_error
+from jarvis_pytest.devices.platforms import spec
+from jarvis_pytest.tasks.library import check_names, fixture_problem, pydantic_error
+from jarvis_pytest.tasks.templating import Where
 from jarvis_pytest.tasks.model import Dataset, Task
 from jarvis_pytest.tasks.types import TypeSystem, load_types
 
@@ -68,6 +70,18 @@ def load_dataset(path: Path | str, types: TypeSystem | None = None, *, check: bo
             raise ConfigError(f"duplicate task id {task.id!r} (also tasks[{seen[task.id]}])", path=path,
                               field=f"tasks[{i}].id", fix="give every task its own id")
         seen[task.id] = i
+    for i, task in enumerate(dataset.tasks):
+        for j, sub in enumerate(task.formatted_subtasks):
+            where = Where(path, task.id, f"tasks[{i}].formatted_subtasks[{j}]")
+            check_names(sub.evaluate, sub.config, where)
+            for k, step in enumerate(sub.config):
+                if step.type == "upload_file" and step.fixture is not None and fixture_problem(step.fixture):
+                    raise where.at(f"config[{k}].fixture").error(fixture_problem(step.fixture),
+                                                                 "use a file under fixtures/files/")
+                if step.type == "upload_file" and not spec(step.platform or sub.platform).may_write(step.path):
+                    raise where.at(f"config[{k}].path").error(
+                        f"upload path {step.path!r} is not where a task may write",
+                        f"use a path under {' or '.join(spec(step.platform or sub.platform).writable_roots)}")
     if check:
         types = types or load_types()
         for i, task in enumerate(dataset.tasks):

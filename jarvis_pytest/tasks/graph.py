@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from typing import Sequence
 
+from jarvis_pytest.devices.platforms import spec
 from jarvis_pytest.tasks.model import Edge, Subtask, Task
 from jarvis_pytest.tasks.templating import has_placeholder
 from jarvis_pytest.tasks.types import TypeSystem
@@ -35,7 +36,7 @@ def classify(subtasks: Sequence[Subtask], edges: Sequence[Edge]) -> str | None:
 
 def _key(platform: str, value: object) -> tuple[str, str]:
     text = str(value)
-    return platform, text.lower() if platform == "windows" else text
+    return platform, text.lower() if spec(platform).case_insensitive_paths else text
 
 
 def _name(subtasks: Sequence[Subtask], i: int) -> str:

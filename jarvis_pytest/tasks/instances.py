@@ -98,6 +98,8 @@ def materialise(template: TaskTemplate, values: Mapping[str, Scalar], *, fed: Ma
         outputs[name] = BoundSlot(type=bound_type, value=value, content_checked=None if spec.content_checked else False)
     every = {**input_values, **{name: slot.value for name, slot in outputs.items()}}
     kept = [step for step in template.config if step.provides is None or step.provides not in fed]
+    config = _render_steps(kept, _STEP, every, where.at("config"))
+    _check_upload_paths(config, template.platform, where)
     fed_values = {str(slot.value) for slot in fed.values()}
     baseline = [render_text(p, every, where.at(f"baseline[{i}]")) for i, p in enumerate(template.baseline)]
     negatives = None
@@ -112,7 +114,7 @@ def materialise(template: TaskTemplate, values: Mapping[str, Scalar], *, fed: Ma
         instruction=render_text(template.instruction, every, where.at("instruction")),
         input=inputs,
         output=outputs,
-        config=_render_steps(kept, _STEP, every, where.at("config")),
+        config=config,
         evaluate=_render_steps(template.evaluate, EvaluatorSpec, every, where.at("evaluate")),
         solution=_render_steps(template.solution, SolutionStep, every, where.at("solution")),
         negatives=negatives,
@@ -122,6 +124,18 @@ def materialise(template: TaskTemplate, values: Mapping[str, Scalar], *, fed: Ma
         source_platform=template.source_platform,
         max_steps=template.max_steps,
     )
+
+
+def _check_upload_paths(config: list, platform: str, where: Where) -> None:
+    """Set-up may put files only where a task may write on its device (no absolute host paths, no `..`)."""
+    from jarvis_pytest.devices.platforms import spec
+
+    for i, step in enumerate(config):
+        target = step.platform or platform
+        if step.type == "upload_file" and not spec(target).may_write(step.path):
+            raise where.at(f"config[{i}].path").error(
+                f"upload path {step.path!r} is not where a task may write on the {target} device",
+                f"put it under {' or '.join(spec(target).writable_roots)}")
 
 
 def instance_id(template_id: str, seed: int) -> str:

@@ -4,9 +4,8 @@ from __future__ import annotations
 
 from typing import Sequence
 
+from jarvis_pytest.devices.platforms import spec
 from jarvis_pytest.tasks.model import Subtask
-
-PLATFORM_NAMES = {"android": "Android phone", "windows": "Windows PC", "ubuntu": "Ubuntu desktop"}
 
 
 def merged_instruction(subtasks: Sequence[Subtask], dependent: bool) -> str:
@@ -21,6 +20,6 @@ def merged_instruction(subtasks: Sequence[Subtask], dependent: bool) -> str:
             else f"Complete the following {n} tasks; they are independent of each other:")
     lines = [head]
     for i, sub in enumerate(subtasks, 1):
-        prefix = "" if sub.source_platform else f"On the {PLATFORM_NAMES[sub.platform]}: "
+        prefix = "" if sub.source_platform else f"On the {spec(sub.platform).device_name}: "
         lines.append(f"{i}. {prefix}{sub.instruction}")
     return "\n".join(lines)

@@ -212,12 +212,50 @@ def validate_template(tpl: TaskTemplate, types: TypeSystem, *, path: object = No
         if not types.is_file(tpl.inputs[name].type):
             raise fail(f"consumes.{name}", f"only file inputs can be consumed ({name!r} is {tpl.inputs[name].type!r})",
                        "remove it from consumes")
-    if evaluators is not None:
-        for i, spec in enumerate(tpl.evaluate):
-            if spec.func not in evaluators:
-                raise fail(f"evaluate[{i}].func", f"unknown evaluator {spec.func!r}",
-                           f"use one of {sorted(evaluators)} or register it in jarvis_pytest/evaluators/")
+    check_names(tpl.evaluate, tpl.config, where, evaluators)
+    for i, step in enumerate(tpl.config):
+        if step.type == "upload_file" and step.fixture is not None:
+            problem = fixture_problem(step.fixture)
+            if problem:
+                raise fail(f"config[{i}].fixture", problem, "put the file under fixtures/files/ and name it "
+                           "relative to that folder")
     materialise(tpl, sample_inputs(tpl, random.Random(0)), source=path)
+
+
+FIXTURE_FILES = Path(__file__).resolve().parents[2] / "fixtures" / "files"
+
+
+def fixture_problem(name: str, root: Path = FIXTURE_FILES, *, must_exist: bool = False) -> str | None:
+    """Why a set-up fixture cannot be used (None when it can): it must be inside `fixtures/files/`, reached
+    without leaving it (no absolute path, no `..`, no symlink out of it); at set-up it must also exist."""
+    if Path(name).is_absolute() or ".." in Path(name).parts:
+        return f"fixture {name!r} must be a path relative to fixtures/files/ without `..`"
+    target = (root / name).resolve()
+    if not target.is_relative_to(root.resolve()):
+        return f"fixture {name!r} leads out of fixtures/files/ (to {target})"
+    if must_exist and not target.is_file():
+        return f"fixture {name!r} is not a file under fixtures/files/"
+    return None
+
+
+def check_names(evaluate: list, config: list, where: Where, evaluators: Collection[str] | None = None) -> None:
+    """Every evaluator and file generator named by a template or subtask exists (default: the registries)."""
+    if evaluators is None:
+        from jarvis_pytest.evaluators import EVALUATORS
+
+        evaluators = EVALUATORS
+    from jarvis_pytest.generators import GENERATORS
+
+    for i, spec in enumerate(evaluate):
+        if spec.func not in evaluators:
+            raise where.at(f"evaluate[{i}].func").error(
+                f"unknown evaluator {spec.func!r}", f"use one of {sorted(evaluators)} or register it in "
+                "jarvis_pytest/evaluators/")
+    for i, step in enumerate(config):
+        if step.type == "upload_file" and step.generator is not None and step.generator not in GENERATORS:
+            raise where.at(f"config[{i}].generator").error(
+                f"unknown file generator {step.generator!r}", f"use one of {sorted(GENERATORS)} or register it in "
+                "jarvis_pytest/generators/")
 
 
 def negative_problems(tpl: TaskTemplate) -> list[str]:

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping, Protocol
 
 from jarvis_pytest.llm.config import EndpointConfig, resolve_endpoint
-from jarvis_pytest.tasks.instruction import PLATFORM_NAMES
+from jarvis_pytest.devices.platforms import spec
 from jarvis_pytest.tasks.model import Task
 
 ROLE = "composer"  # options/env/pyproject: --composer-*, JARVIS_COMPOSER_*, [tool.jarvis.composer]
@@ -134,7 +134,7 @@ def describe_for_judge(task: Task) -> str:
     feeds = {tuple(e.to): tuple(e.from_) for e in task.edges}
     lines = [f"Instruction: {task.instruction}", ""]
     for i, sub in enumerate(task.formatted_subtasks, 1):
-        lines.append(f"Subtask {i} on the {PLATFORM_NAMES[sub.platform]} ({sub.app}):")
+        lines.append(f"Subtask {i} on the {spec(sub.platform).device_name} ({sub.app}):")
         for name, slot in sorted(sub.input.items()):
             src = feeds.get((i - 1, name))
             origin = f" (from {{{{{src[1]}}}}} of subtask {src[0] + 1} as {{{{{name}}}}})" if src else ""

@@ -55,6 +55,12 @@ class UploadFile(_Step):
             raise ValueError("upload_file needs exactly one of `fixture`, `content` and `generator`")
         if self.args and self.generator is None:
             raise ValueError("upload_file `args` belong to a `generator`")
+        if self.fixture is not None:
+            parts = self.fixture.replace("\\", "/").split("/")
+            if self.fixture.startswith(("/", "\\")) or (len(self.fixture) > 1 and self.fixture[1] == ":") \
+                    or ".." in parts or not self.fixture.strip():
+                raise ValueError(f"fixture {self.fixture!r} must be a relative path inside fixtures/files/ "
+                                 "(no absolute path, no `..`)")
         return self
 
 

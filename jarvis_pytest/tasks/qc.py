@@ -105,7 +105,7 @@ def run_qc(args: argparse.Namespace) -> int:
     results, problems = load_results(run_dir)
     if not results:
         print(f"jarvis qc: no task ran (pytest exit {proc.returncode}); see the output above", file=sys.stderr)
-        return proc.returncode or 1
+        return 2 if proc.returncode == 4 else (proc.returncode or 1)  # a usage error is the command's usage error
     rows = [qc_row(r) for r in results]
     table = render_table(rows)
     (run_dir / "qc.md").write_text(table + "\n", encoding="utf-8")

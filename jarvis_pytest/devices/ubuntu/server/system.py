@@ -99,3 +99,35 @@ def read_file(path: str) -> bytes:
         if res.returncode != 0:
             raise
         return res.stdout
+
+
+def path_kind(path: str) -> str | None:
+    """`file`, `dir`, `other` or None (missing), as the desktop user sees it (root-only paths through sudo)."""
+    p = Path(path)
+    try:
+        if p.is_file():
+            return "file"
+        if p.is_dir():
+            return "dir"
+        if p.exists() or p.is_symlink():
+            return "other"
+        return None
+    except PermissionError:
+        res = subprocess.run(["sudo", "-n", "bash", "-c", '[ -f "$1" ] && echo file || { [ -d "$1" ] && echo dir; } '
+                              '|| { [ -e "$1" ] && echo other; }', "_", path], capture_output=True, text=True)
+        return res.stdout.strip() or None
+
+
+def clipboard_get() -> str:
+    """The text of the CLIPBOARD selection ("" when it holds none)."""
+    res = subprocess.run(["xclip", "-selection", "clipboard", "-o"], capture_output=True, timeout=5)
+    return res.stdout.decode("utf-8", "replace") if res.returncode == 0 else ""
+
+
+def clipboard_set(text: str) -> None:
+    """Own the CLIPBOARD selection with `text` (xclip keeps serving it in the background)."""
+    proc = subprocess.Popen(["xclip", "-selection", "clipboard", "-i"], stdin=subprocess.PIPE,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    proc.stdin.write(text.encode("utf-8"))
+    proc.stdin.close()
+    threading.Thread(target=proc.wait, name="reap xclip", daemon=True).start()

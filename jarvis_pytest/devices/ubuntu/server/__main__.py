@@ -1,8 +1,8 @@
-"""`python3 -m jarvis_pytest.devices.server --port 5000`"""
+"""`python3 -m jarvis_pytest.devices.ubuntu.server --port 5000`"""
 
 import argparse
 
-from jarvis_pytest.devices.server.app import serve
+from jarvis_pytest.devices.ubuntu.server.app import serve
 
 parser = argparse.ArgumentParser(prog="jarvis-control-server")
 parser.add_argument("--host", default="0.0.0.0", help="inside the container; Docker publishes it on 127.0.0.1 only")

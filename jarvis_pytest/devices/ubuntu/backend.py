@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
-from jarvis_pytest.devices.backend import CONTROL_PORT, Backend, register_backend
+from jarvis_pytest.devices.backend import Backend
 from jarvis_pytest.devices.desktop import DesktopDevice, wait_ready
 
-register_backend(Backend(
+BACKEND = Backend(
     platform="ubuntu",
+    name="docker",
     image="ubuntu",
-    port=CONTROL_PORT,
     connect=lambda url: DesktopDevice(url, platform="ubuntu"),
     wait_ready=wait_ready,
     container_options={"shm_size": "512m"},
-))
+    memory="4g",
+    ready_timeout=60.0,
+)

@@ -55,7 +55,7 @@ class Screen:
         self.lock = threading.Lock()
         self._cursor: tuple[int, Image.Image] | None = None  # (serial, image)
         try:
-            from jarvis_pytest.devices.server.xshm import ShmGrabber
+            from jarvis_pytest.devices.ubuntu.server.xshm import ShmGrabber
 
             self._shm: ShmGrabber | None = ShmGrabber(name)
         except OSError:
@@ -119,6 +119,24 @@ class Screen:
             return text.decode("utf-8", "replace") if isinstance(text, bytes) else str(text or "")
 
         return self._viewable_clients(title)
+
+    def windows(self) -> list[dict[str, Any]]:
+        """The viewable managed windows: id, title, WM class, box [x, y, w, h] on the screen, focused."""
+        atom = self.display.intern_atom
+        with self.lock:
+            active = self.root.get_full_property(atom("_NET_ACTIVE_WINDOW"), X.AnyPropertyType)
+        focused = active.value[0] if active and len(active.value) else None
+
+        def describe(window) -> dict[str, Any]:
+            name = window.get_full_property(atom("_NET_WM_NAME"), atom("UTF8_STRING"))
+            text = name.value if name else window.get_wm_name()
+            geo = window.get_geometry()
+            pos = window.translate_coords(self.root, 0, 0)
+            return {"id": window.id, "title": text.decode("utf-8", "replace") if isinstance(text, bytes) else
+                    str(text or ""), "class": (window.get_wm_class() or ("", ""))[-1] or "",
+                    "box": [-pos.x, -pos.y, geo.width, geo.height], "focused": window.id == focused}
+
+        return sorted(self._viewable_clients(describe).values(), key=lambda w: w["id"])
 
     def painted(self, min_stddev: float = 8.0) -> bool:
         """Whether the screen shows something (a desktop that is up but not yet drawn is one flat colour)."""

@@ -12,9 +12,9 @@ from urllib.parse import parse_qs, urlsplit
 from pydantic import BaseModel, ValidationError
 
 from jarvis_pytest.devices import actions as A
-from jarvis_pytest.devices.protocol import (A11yTree, ActionResult, Health, LaunchRequest, LaunchResponse, RunRequest,
-                                            ScreenSize)
-from jarvis_pytest.devices.server import system
+from jarvis_pytest.devices.protocol import (A11yTree, ActionResult, ClipboardText, Health, LaunchRequest,
+                                            LaunchResponse, OpenRequest, PathInfo, RunRequest, ScreenSize, WindowList)
+from jarvis_pytest.devices.ubuntu.server import system
 
 MAX_BODY = 512 * 1024 * 1024
 PLATFORM = "ubuntu"  # the platform this server runs on (`--platform`), named in refusals
@@ -39,7 +39,7 @@ class Devices:
     def screen(self):
         with self._lock:
             if self._screen is None:
-                from jarvis_pytest.devices.server.screen import Screen
+                from jarvis_pytest.devices.ubuntu.server.screen import Screen
 
                 self._screen = Screen()
             return self._screen
@@ -48,7 +48,7 @@ class Devices:
     def keyboard(self):
         with self._lock:
             if self._keyboard is None:
-                from jarvis_pytest.devices.server.xinput import Keyboard
+                from jarvis_pytest.devices.ubuntu.server.xinput import Keyboard
 
                 self._keyboard = Keyboard()
             return self._keyboard
@@ -92,7 +92,7 @@ def execute(action: A.Action) -> None:
     elif t == "SYSTEM_BUTTON":
         raise HttpError(400, f"SYSTEM_BUTTON (an Android system button) is not supported on {PLATFORM}")
     elif t == "PYAUTOGUI":
-        from jarvis_pytest.devices.server.pyautogui_compat import run_script
+        from jarvis_pytest.devices.ubuntu.server.pyautogui_compat import run_script
 
         try:
             run_script(action.script, kb)
@@ -131,7 +131,7 @@ class Handler(BaseHTTPRequestHandler):
 
     def _json(self, status: int, data: Any) -> None:
         if isinstance(data, BaseModel):
-            data = data.model_dump(mode="json")
+            data = data.model_dump(mode="json", by_alias=True)
         self._send(status, json.dumps(data).encode(), "application/json")
 
     def _body(self) -> bytes:
@@ -207,7 +207,7 @@ class Handler(BaseHTTPRequestHandler):
         self._send(200, DEVICES.screen.png(), "image/png")
 
     def a11y(self) -> None:
-        from jarvis_pytest.devices.server.a11y import tree
+        from jarvis_pytest.devices.ubuntu.server.a11y import tree
 
         q = self._query()
         try:
@@ -221,7 +221,7 @@ class Handler(BaseHTTPRequestHandler):
         self._json(200, A11yTree(**tree(**limits)))
 
     def action(self) -> None:
-        from jarvis_pytest.devices.server.xinput import InputError
+        from jarvis_pytest.devices.ubuntu.server.xinput import InputError
 
         body = self._body()
         try:
@@ -257,24 +257,50 @@ class Handler(BaseHTTPRequestHandler):
         req = self._model(RunRequest)
         self._json(200, system.run(req.command, req.user, req.timeout))
 
-    def launch(self) -> None:
-        """Start an application; with `window_wait`, answer once the desktop shows a new application window or an
+    def _start_and_wait(self, app: str, args: list[str], window_wait: float) -> None:
+        """Start a program; with `window_wait`, answer once the desktop shows a new application window or an
         existing one changed its title (a file opened into a tab), so the next screenshot shows the app."""
-        req = self._model(LaunchRequest)
-        before = DEVICES.screen.app_windows() if req.window_wait else {}
+        before = DEVICES.screen.app_windows() if window_wait else {}
         try:
-            system.launch(req.app, req.args)
+            system.launch(app, args)
         except FileNotFoundError:
-            raise HttpError(404, f"no application {req.app!r} on this device (give a command on its PATH, "
+            raise HttpError(404, f"no application {app!r} on this device (give a command on its PATH, "
                                  "e.g. mousepad, libreoffice, chromium, gimp, thunar)") from None
         except PermissionError:
-            raise HttpError(400, f"{req.app!r} is not an executable") from None
-        deadline, shown = time.monotonic() + req.window_wait, False
-        while req.window_wait and not shown and time.monotonic() < deadline:
+            raise HttpError(400, f"{app!r} is not an executable") from None
+        deadline, shown = time.monotonic() + window_wait, False
+        while window_wait and not shown and time.monotonic() < deadline:
             time.sleep(0.05)
             now = DEVICES.screen.app_windows()
             shown = any(before.get(wid) != title for wid, title in now.items())
         self._json(200, LaunchResponse(window=shown))
+
+    def launch(self) -> None:
+        req = self._model(LaunchRequest)
+        self._start_and_wait(req.app, req.args, req.window_wait)
+
+    def open(self) -> None:
+        """Open a file or folder with its default application (xdg-open), waiting for its window like launch."""
+        req = self._model(OpenRequest)
+        if not req.path.startswith("/"):
+            raise HttpError(400, "`path` must be an absolute path")
+        if system.path_kind(req.path) is None:
+            raise HttpError(404, f"no file or folder at {req.path}")
+        self._start_and_wait("xdg-open", [req.path], req.window_wait)
+
+    def exists(self) -> None:
+        kind = system.path_kind(self._path_arg())
+        self._json(200, PathInfo(exists=kind is not None, kind=kind))
+
+    def windows(self) -> None:
+        self._json(200, WindowList(windows=DEVICES.screen.windows()))
+
+    def get_clipboard(self) -> None:
+        self._json(200, ClipboardText(text=system.clipboard_get()))
+
+    def put_clipboard(self) -> None:
+        system.clipboard_set(self._model(ClipboardText).text)
+        self._json(200, {"ok": True})
 
 
 ROUTES = {
@@ -287,6 +313,11 @@ ROUTES = {
     ("GET", "/files"): Handler.get_file,
     ("POST", "/run"): Handler.run,
     ("POST", "/launch"): Handler.launch,
+    ("POST", "/open"): Handler.open,
+    ("GET", "/exists"): Handler.exists,
+    ("GET", "/windows"): Handler.windows,
+    ("GET", "/clipboard"): Handler.get_clipboard,
+    ("PUT", "/clipboard"): Handler.put_clipboard,
 }
 
 

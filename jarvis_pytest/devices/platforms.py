@@ -1,0 +1,105 @@
+"""The facts of each platform in one place (as AndroidWorld's `env/device_constants.py`): names, screen, paths,
+shell, and how a device of the platform fetches and sends files over HTTP. Everything that differs between
+Android, Windows and Ubuntu outside a platform's own folder reads it from here, so a new platform is a new entry,
+not a new branch in the plugin, the composer or the agents."""
+
+from __future__ import annotations
+
+import ntpath
+import posixpath
+from dataclasses import dataclass
+from typing import Literal
+
+from jarvis_pytest.errors import ConfigError
+
+PathStyle = Literal["posix", "windows"]
+
+
+@dataclass(frozen=True)
+class PlatformSpec:
+    """One platform's facts."""
+
+    name: str                        # android | windows | ubuntu
+    label: str                       # short, for prompts and tables: "Ubuntu"
+    device_name: str                 # in instructions: "Ubuntu desktop"
+    screen: tuple[int, int]          # the default screen size (width, height)
+    path_style: PathStyle
+    case_insensitive_paths: bool
+    home: str
+    writable_roots: tuple[str, ...]  # where set-up may put files (upload_file paths)
+    transfer_folder: str             # where the built-in transfer task saves received files
+    shell: str                       # what `Device.run` runs commands with: bash | cmd | sh
+    desktop_user: str | None = None  # the user commands run as by default (None: the shell's own)
+
+    @property
+    def sep(self) -> str:
+        return "\\" if self.path_style == "windows" else "/"
+
+    def join(self, *parts: str) -> str:
+        return (ntpath if self.path_style == "windows" else posixpath).join(*parts)
+
+    def normalise(self, path: str) -> str:
+        """A path in the form two paths of this platform can be compared in (case folded where paths are)."""
+        mod = ntpath if self.path_style == "windows" else posixpath
+        path = mod.normpath(path.replace("/", "\\") if self.path_style == "windows" else path)
+        return path.lower() if self.case_insensitive_paths else path
+
+    def is_absolute(self, path: str) -> bool:
+        if self.path_style == "windows":
+            return len(path) > 2 and path[1] == ":" and path[2] in "\\/"
+        return path.startswith("/")
+
+    def may_write(self, path: str) -> bool:
+        """Whether set-up may put a file at `path` (absolute, no `..`, under a writable root)."""
+        if not self.is_absolute(path) or ".." in path.replace("\\", "/").split("/"):
+            return False
+        norm = self.normalise(path)
+        return any(norm == self.normalise(r) or norm.startswith(self.normalise(r) + self.sep)
+                   for r in self.writable_roots)
+
+    def mkdir_command(self, folder: str) -> str:
+        if self.shell == "cmd":
+            return f'if not exist "{folder}" mkdir "{folder}"'
+        return f"mkdir -p '{folder}'"
+
+    def http_put_command(self, path: str, url: str, password: str) -> str:
+        """A command that uploads the file at `path` to `url` (the drive's `PW:` header) with the device's tools."""
+        if self.shell == "cmd":  # no curl.exe under Wine: the device's own Python (both Windows backends have it)
+            return (f'python -c "import urllib.request as u,sys; r=u.Request(sys.argv[2], data=open(sys.argv[1],'
+                    f"'rb').read(), method='PUT', headers={{'PW': sys.argv[3]}}); u.urlopen(r, timeout=60)\" "
+                    f'"{path}" "{url}" "{password}"')
+        return f"curl -fsS -H 'PW: {password}' -T '{path}' '{url}'"
+
+    def http_get_command(self, url: str, path: str, password: str) -> str:
+        """A command that downloads `url` into `path` with the device's tools."""
+        if self.shell == "cmd":
+            return (f'python -c "import urllib.request as u,sys; r=u.Request(sys.argv[1], headers={{\'PW\': '
+                    f"sys.argv[3]}}); open(sys.argv[2],'wb').write(u.urlopen(r, timeout=60).read())\" "
+                    f'"{url}" "{path}" "{password}"')
+        return f"curl -fsS -H 'PW: {password}' -o '{path}' '{url}'"
+
+
+PLATFORMS: dict[str, PlatformSpec] = {
+    "android": PlatformSpec(
+        name="android", label="Android", device_name="Android phone", screen=(1080, 2400), path_style="posix",
+        case_insensitive_paths=False, home="/sdcard", writable_roots=("/sdcard", "/data/local/tmp"),
+        transfer_folder="/sdcard/Download/transfer", shell="sh"),
+    "windows": PlatformSpec(
+        name="windows", label="Windows", device_name="Windows PC", screen=(1920, 1080), path_style="windows",
+        case_insensitive_paths=True, home="C:\\Users\\user", writable_roots=("C:\\Users\\user", "C:\\temp", "S:\\"),
+        transfer_folder="C:\\Users\\user\\Downloads\\transfer", shell="cmd"),
+    "ubuntu": PlatformSpec(
+        name="ubuntu", label="Ubuntu", device_name="Ubuntu desktop", screen=(1920, 1080), path_style="posix",
+        case_insensitive_paths=False, home="/home/user", writable_roots=("/home/user", "/tmp"),
+        transfer_folder="/tmp/transfer", shell="bash", desktop_user="user"),
+}
+PLATFORM_NAMES: tuple[str, ...] = tuple(PLATFORMS)
+
+
+def spec(platform: str) -> PlatformSpec:
+    """The facts of `platform`; a ConfigError naming the known platforms otherwise."""
+    try:
+        return PLATFORMS[platform]
+    except KeyError:
+        raise ConfigError(f"unknown platform {platform!r}", field="platform",
+                          fix=f"use one of {', '.join(PLATFORMS)}") from None

@@ -1,0 +1,163 @@
+"""The state of a run, on disk: `run.json` (who runs it, since when, every session, a heartbeat) and `plan.json`
+(every task the run meant to run). Readers — the dashboard, `jarvis runs`, `--resume` — tell a live run from
+one whose process is gone ("interrupted") without trusting a state that a killed process could not update.
+
+`run.json`::
+
+    {"format": "jarvis-pytest run", "run_id", "state": "running" | "finished" | "interrupted",
+     "started" (the first session's start, kept by --resume), "finished", "heartbeat", "pid", "host",
+     "agent", "agent_key", "egress", "sessions": [{"started", "finished", "argv", "pid", "exit", "resumed"}]}
+
+`plan.json`: ``{"tasks": [ids], "categories": {id: category}, "digests": {id: hash of the task's definition}}``,
+the union over the run's sessions (a resumed run never forgets a planned task).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import socket
+import threading
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from jarvis_pytest.results.writer import now_iso, write_json_atomic
+
+RUN_FORMAT = "jarvis-pytest run"
+HEARTBEAT_SECONDS = 10.0
+STALE_SECONDS = 60.0  # a heartbeat older than this from another host means its process is gone
+
+
+def read_json(path: Path) -> dict[str, Any] | None:
+    """A JSON object from `path`, or None when missing or unreadable."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
+
+
+def task_digest(task: dict[str, Any]) -> str:
+    """A short hash of a task's definition: a resumed run refuses a task whose definition changed."""
+    return hashlib.sha256(json.dumps(task, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def process_alive(pid: int) -> bool:
+    """Whether process `pid` of this host still runs (a zombie does not)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return True
+
+
+def _age_seconds(iso: str) -> float:
+    try:
+        return (datetime.now(timezone.utc) - datetime.fromisoformat(iso)).total_seconds()
+    except (TypeError, ValueError):
+        return float("inf")
+
+
+def liveness(meta: dict[str, Any] | None) -> str:
+    """`running`, `finished` or `interrupted` from a run.json: a run marked running whose process is gone (same
+    host) or whose heartbeat went stale (another host) was interrupted. `unknown` without a run.json."""
+    if not meta:
+        return "unknown"
+    state = meta.get("state")
+    if state in ("finished", "interrupted"):
+        return state
+    if state != "running":  # a run.json written before run states existed: it is written when a session ends
+        return "finished"
+    pid = meta.get("pid")
+    if meta.get("host") == socket.gethostname() and isinstance(pid, int):
+        return "running" if process_alive(pid) else "interrupted"
+    return "running" if _age_seconds(meta.get("heartbeat", "")) < STALE_SECONDS else "interrupted"
+
+
+def is_run_dir(path: Path) -> bool:
+    """Whether `path` holds a run of this project (its run.json, or an older run's plan.json and tasks/)."""
+    meta = read_json(path / "run.json")
+    if meta is not None:
+        return meta.get("format") == RUN_FORMAT or "run_id" in meta
+    plan = read_json(path / "plan.json")
+    return plan is not None and isinstance(plan.get("tasks"), list) and (path / "tasks").is_dir()
+
+
+class RunState:
+    """The controller's handle on run.json: start (or resume) a session, beat, finish. Thread-safe."""
+
+    def __init__(self, run_dir: Path, argv: list[str], resumed: bool):
+        self.run_dir = run_dir
+        self.path = run_dir / "run.json"
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        old = read_json(self.path) if resumed else None
+        now = now_iso()
+        self.meta: dict[str, Any] = dict(old or {})
+        self.meta.update({"format": RUN_FORMAT, "run_id": run_dir.name, "state": "running", "finished": "",
+                          "heartbeat": now, "pid": os.getpid(), "host": socket.gethostname()})
+        self.meta.setdefault("started", now)
+        sessions = list(self.meta.get("sessions") or [])
+        sessions.append({"started": now, "finished": "", "argv": argv, "pid": os.getpid(), "exit": None,
+                         "resumed": bool(old)})
+        self.meta["sessions"] = sessions
+
+    def start(self, **fields: Any) -> None:
+        """Write run.json (creating the run directory) and start the heartbeat."""
+        with self._lock:
+            self.meta.update(fields)
+            self.run_dir.mkdir(parents=True, exist_ok=True)
+            write_json_atomic(self.path, self.meta)
+        self._thread = threading.Thread(target=self._beat, name="jarvis-heartbeat", daemon=True)
+        self._thread.start()
+
+    def update(self, **fields: Any) -> None:
+        with self._lock:
+            self.meta.update(fields)
+            write_json_atomic(self.path, self.meta)
+
+    def _beat(self) -> None:
+        while not self._stop.wait(HEARTBEAT_SECONDS):
+            try:
+                self.update(heartbeat=now_iso())
+            except OSError:
+                pass  # the run directory went away; the session ends on its own
+
+    def finish(self, interrupted: bool, exit_status: int, **fields: Any) -> None:
+        """Mark the session ended (`interrupted` when it was stopped before its tasks were done)."""
+        self._stop.set()
+        now = now_iso()
+        with self._lock:
+            self.meta["sessions"][-1].update(finished=now, exit=exit_status)
+            self.meta.update(fields, state="interrupted" if interrupted else "finished", finished=now, heartbeat=now)
+            write_json_atomic(self.path, self.meta)
+
+
+def read_plan(run_dir: Path) -> dict[str, Any]:
+    """plan.json as {"tasks", "categories", "digests"} (empty parts when missing)."""
+    plan = read_json(run_dir / "plan.json") or {}
+    tasks = [str(t) for t in plan.get("tasks") or []]
+    categories = {str(k): str(v) for k, v in (plan.get("categories") or {}).items()}
+    digests = {str(k): str(v) for k, v in (plan.get("digests") or {}).items()}
+    return {"tasks": tasks, "categories": categories, "digests": digests}
+
+
+def merge_plan(run_dir: Path, tasks: list[dict[str, Any]]) -> None:
+    """Add `tasks` (dataset-format dicts) to plan.json: the plan is the union over the run's sessions."""
+    plan = read_plan(run_dir)
+    ids = set(plan["tasks"])
+    for t in tasks:
+        ids.add(t["id"])
+        plan["categories"][t["id"]] = t.get("category", "atomic")
+        plan["digests"][t["id"]] = task_digest(t)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(run_dir / "plan.json", {"tasks": sorted(ids), "categories": plan["categories"],
+                                              "digests": plan["digests"], "written": now_iso()})
