@@ -34,6 +34,9 @@ def main(argv: list[str] | None = None) -> int:
     except JarvisError as exc:
         print(f"jarvis {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"jarvis {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

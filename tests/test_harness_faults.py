@@ -30,9 +30,11 @@ def bench_cmd(run_dir: Path, *args: str) -> list[str]:
 
 
 def leftovers(run_id: str) -> tuple[list, list]:
-    d = docker.from_env()
+    """The containers and networks (names) the run still has."""
+    api = docker.from_env().api
     label = {"label": f"org.jarvis.run={run_id}"}
-    return d.containers.list(all=True, filters=label), d.networks.list(filters=label)
+    return ([c["Names"] for c in api.containers(all=True, filters=label)],
+            [n["Name"] for n in api.networks(filters=label)])
 
 
 def wait_for(predicate, timeout: float, what: str) -> None:
@@ -183,7 +185,7 @@ def test_oracle_trajectory_names_each_device_and_command(device_images, tmp_path
     assert steps[-1]["action"]["type"] == "DONE"
     assert proc.stdout.count("infrastructure error") == 0
     # the dashboard's task API answers for the task id it lists, and for the folder name
-    store = ResultsStore(tmp_path)
+    store = ResultsStore(tmp_path.parent)
     listed = store.run(tmp_path.name)["tasks"][0]
     assert store.task(tmp_path.name, listed["task_id"])["task_id"] == listed["task_id"]
     assert store.task(tmp_path.name, listed["name"])["task_id"] == listed["task_id"]

@@ -19,7 +19,7 @@ from jarvis_pytest.results import run_state
 from jarvis_pytest.results.model import StepRecord, TaskResult
 from jarvis_pytest.results.writer import safe_name
 
-DONE = ("passed", "failed", "error", "timeout")
+DONE = ("passed", "failed", "error", "timeout", "skipped")
 
 
 class NotFound(LookupError):
@@ -168,7 +168,8 @@ class ResultsStore:
             problems.extend(t["problems"])
         started_names = {t["name"] for t in tasks}
         pending = [t for t in (planned or []) if safe_name(t) not in started_names]
-        counts = {k: 0 for k in ("passed", "failed", "error", "timeout", "running", "interrupted", "unknown")}
+        counts = {k: 0 for k in ("passed", "failed", "error", "timeout", "skipped", "running", "interrupted",
+                                 "unknown")}
         for t in tasks:
             counts[t["status"]] = counts.get(t["status"], 0) + 1
         counts["pending"] = len(pending)

@@ -46,6 +46,7 @@ class Backend:
     stand_in: bool = False                       # not the real platform (e.g. Windows under Wine)
     drive_mount: str | None = None               # where the device mounts the task's drive storage, if it does
     unavailable: Callable[[], str | None] = lambda: None  # why it cannot run on this machine (None: it can)
+    how_to_run: str = ""                         # what a user does to run this backend where it cannot run yet
 
     @property
     def label(self) -> str:

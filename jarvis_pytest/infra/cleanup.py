@@ -60,13 +60,20 @@ def cleanup(run_id: str | None = None, everything: bool = False, orphans_only: b
     label = f"{LABEL_RUN}={run_id}" if run_id else LABEL_RUN
     counts = {"containers": 0, "networks": 0, "volumes": 0}
     problems: list[str] = []
-    listings = {"containers": lambda: docker.containers.list(all=True, filters={"label": label}),
-                "networks": lambda: docker.networks.list(filters={"label": label}),
-                "volumes": lambda: docker.volumes.list(filters={"label": label})}
+    # listings through the low-level API: one request each, no per-item inspection that a removal racing ours
+    # (another run ending) would turn into an error
+    api = docker.api
+    listings = {
+        "containers": lambda: [(docker.containers.prepare_model(c), c.get("Labels")) for c in
+                               api.containers(all=True, filters={"label": label})],
+        "networks": lambda: [(docker.networks.prepare_model(n), n.get("Labels")) for n in
+                             api.networks(filters={"label": label})],
+        "volumes": lambda: [(docker.volumes.prepare_model(v), v.get("Labels")) for v in
+                            (api.volumes(filters={"label": label}) or {}).get("Volumes") or []],
+    }
     for kind, listing in listings.items():  # containers first: a network in use cannot go
-        for resource in listing():
-            labels = (resource.attrs.get("Labels") if kind != "containers" else resource.labels) or {}
-            if orphans_only and not is_orphan(labels):
+        for resource, labels in listing():
+            if orphans_only and not is_orphan(labels or {}):
                 continue
             if _remove(resource, kind, problems):
                 counts[kind] += 1

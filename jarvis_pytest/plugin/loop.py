@@ -26,6 +26,7 @@ from jarvis_pytest.results.model import StepRecord
 from jarvis_pytest.results.writer import TaskRecorder
 
 GRACE = 2.0  # seconds past a deadline we wait for the agent's thread to give up on its own
+DEADLINE_SLACK = 0.5  # an endpoint error this close to the deadline is the deadline's doing
 
 
 @dataclass
@@ -98,7 +99,14 @@ def run_loop(agent: Agent, devices: dict[str, Device], idle: dict[str, Observati
         t1 = time.monotonic()
         step_deadline = t1 + limits.step_timeout
         deadline = min(step_deadline, task_deadline)
-        step = decide(agent, observations, list(history), deadline)
+        try:
+            step = decide(agent, observations, list(history), deadline)
+        except InfrastructureError as exc:  # the model client gave up at the deadline: the deadline's verdict
+            if time.monotonic() < deadline - DEADLINE_SLACK:
+                raise
+            step, cause = None, exc
+        else:
+            cause = None
         t2 = time.monotonic()
         out.agent_seconds += t2 - t1
         if step is None:
@@ -106,6 +114,8 @@ def run_loop(agent: Agent, devices: dict[str, Device], idle: dict[str, Observati
             message = (f"the task's time limit ({limits.task_timeout:g} s) passed while the agent decided" if cut_by_task
                        else f"the agent gave no decision within the step time limit ({limits.step_timeout:g} s): "
                             "its model endpoint does not answer")
+            if cause is not None:
+                message += f" ({cause})"
             recorder.step(StepRecord(index=index, platform=None, action=None, screenshots=shots, error=message,
                                      observe_ms=(t1 - t0) * 1000, agent_ms=(t2 - t1) * 1000))
             out.steps = index + 1

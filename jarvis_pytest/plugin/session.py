@@ -24,7 +24,8 @@ from jarvis_pytest.plugin.options import REPO_ROOT, JarvisOptions, new_run_id, r
 from jarvis_pytest.plugin.runner import RunContext, agent_key, run_task, task_platforms
 from jarvis_pytest.results import run_state
 from jarvis_pytest.results.model import TaskResult
-from jarvis_pytest.results.writer import read_result
+from jarvis_pytest.plugin.availability import skip_reason
+from jarvis_pytest.results.writer import now_iso, read_result, task_dir, write_json_atomic
 
 PROPERTY = cases.PROPERTY
 PLUGIN_NAME = "jarvis-session"
@@ -109,6 +110,14 @@ class JarvisSession:
                 raise pytest.UsageError(f"--agent {self.options.agent}: {exc}") from None
         if self.options.transfer not in (None, "copyparty"):
             _check_transfer_image(self.options.transfer)
+        for platform, name in self.options.backends.items():  # a backend asked for by name must be able to run
+            from jarvis_pytest.devices.backend import backend_for
+
+            backend = backend_for(platform, name)
+            why = backend.unavailable()
+            if why:
+                raise ConfigError(f"the {backend.label} device cannot run on this machine: {why}",
+                                  field=f"--{platform}-backend", fix=backend.how_to_run or "choose another backend")
         key = agent_key(agent.config(), self.options.limits)
         if self.options.resume is not None:
             self._check_resume(key, agent.config(), tasks)
@@ -197,6 +206,18 @@ class JarvisSession:
 
     def run_case(self, request: pytest.FixtureRequest, task: dict[str, Any]) -> TaskResult:
         agent = self.ensure_agent()
+        reason = skip_reason(task, self.options.backends)
+        if reason is not None:  # a device this machine lacks: skipped with the reason, counted apart, never failed
+            result = TaskResult(task_id=task["id"], category=task.get("category", "atomic"),
+                                platforms=list(task_platforms(task)), instruction=task["instruction"],
+                                status="skipped", error=reason, agent=agent.config(),
+                                agent_key=agent_key(agent.config(), self.options.limits), started=now_iso(),
+                                finished=now_iso())
+            folder = task_dir(self.run_dir, task["id"])
+            folder.mkdir(parents=True, exist_ok=True)
+            write_json_atomic(folder / "result.json", result.model_dump(mode="json"))
+            request.node.user_properties.append((PROPERTY, _compact(result, self.run_dir)))
+            pytest.skip(reason)
         if self.options.resume:
             stored = read_result(self.run_dir, task["id"])
             key = agent_key(agent.config(), self.options.limits)
@@ -304,7 +325,7 @@ def _remove_orphans() -> None:
 
     try:
         counts = cleanup(orphans_only=True)
-    except JarvisError as exc:
+    except Exception as exc:  # never a reason not to run; say it
         print(f"[jarvis] could not remove what earlier runs left: {exc}", file=sys.stderr, flush=True)
         return
     if any(counts.values()):
@@ -317,7 +338,7 @@ def _remove_run_resources(run_id: str) -> None:
 
     try:
         counts = cleanup(run_id)
-    except JarvisError as exc:
+    except Exception as exc:
         print(f"[jarvis] {exc}; run `jarvis cleanup --run {run_id}`", file=sys.stderr, flush=True)
         return
     if any(counts.values()):

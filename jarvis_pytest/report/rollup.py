@@ -105,6 +105,7 @@ class Summary(BaseModel):
     unfinished: dict[str, int] = Field(default_factory=dict)  # status "running", per category; ignored
     timeouts: dict[str, int] = Field(default_factory=dict)  # status "timeout", per category; excluded
     not_run: dict[str, int] = Field(default_factory=dict)  # planned (plan.json) but no result, per category
+    skipped: dict[str, int] = Field(default_factory=dict)  # no device for them on this machine, per category
     tasks: int = 0  # tasks counted in the rates
     warnings: list[str] = Field(default_factory=list)  # inconsistent or unexpected results
     seed: int = 0
@@ -211,6 +212,7 @@ def rollup(results: Sequence[TaskResult], *, seed: int = 0, n_boot: int = 2000,
     unfinished = dict.fromkeys(CATEGORIES, 0)
     timeouts = dict.fromkeys(CATEGORIES, 0)
     not_run = dict.fromkeys(CATEGORIES, 0)
+    skipped = dict.fromkeys(CATEGORIES, 0)
     have = {r.task_id for r in ordered}
     for tid, cat in sorted((planned or {}).items()):
         if tid not in have and cat.lower() in not_run:
@@ -225,6 +227,8 @@ def rollup(results: Sequence[TaskResult], *, seed: int = 0, n_boot: int = 2000,
             errors[cat] += 1
         elif r.status == "timeout":
             timeouts[cat] += 1
+        elif r.status == "skipped":
+            skipped[cat] += 1
         elif r.status == "running":
             unfinished[cat] += 1
         else:
@@ -245,7 +249,8 @@ def rollup(results: Sequence[TaskResult], *, seed: int = 0, n_boot: int = 2000,
         agent=agent, atomic=atomic, composed=composed,
         overall={"tsr": tsr("all", everything), "ssr": composed["overall"].ssr},
         by_subtasks=_curve(composed_all), by_subtasks_category={c: _curve(done[c]) for c in COMPOSED},
-        errors=errors, unfinished=unfinished, timeouts=timeouts, not_run=not_run, tasks=len(everything), warnings=sorted(warnings),
+        errors=errors, unfinished=unfinished, timeouts=timeouts, not_run=not_run, skipped=skipped,
+        tasks=len(everything), warnings=sorted(warnings),
         seed=seed, n_boot=n_boot, level=LEVEL)
 
 
@@ -301,7 +306,7 @@ def render_markdown(s: Summary) -> str:
     atomic, multi = _main_cells(s)
     out = [f"# JarvisGUI results{f' — {s.agent}' if s.agent else ''}", "",
            f"Tasks counted: {s.tasks}. Not counted: errors {sum(s.errors.values())}, timeouts "
-           f"{sum(s.timeouts.values())}, unfinished {sum(s.unfinished.values())}, never ran "
+           f"{sum(s.timeouts.values())}, skipped for want of a device {sum(s.skipped.values())}, unfinished {sum(s.unfinished.values())}, never ran "
            f"{sum(s.not_run.values())}.", "",
            "## Table 1a. Atomic tasks: TSR (%)", ""]
     out += _md_table(["Model", "Android", "Windows", "Ubuntu", "Overall"], [[name, *(c.text() for c in atomic)]])
@@ -332,7 +337,8 @@ def render_markdown(s: Summary) -> str:
     out += _md_table(["", *(_LABEL[c] for c in CATEGORIES), "Total"],
                      [[label, *(str(d.get(c, 0)) for c in CATEGORIES), str(sum(d.values()))]
                       for label, d in (("Errors (excluded)", s.errors), ("Timeouts (excluded)", s.timeouts),
-                                       ("Unfinished", s.unfinished), ("Never ran", s.not_run))])
+                                       ("Skipped: no device here", s.skipped), ("Unfinished", s.unfinished),
+                                       ("Never ran", s.not_run))])
     out += _notes(s)
     if s.warnings:
         out += ["Warnings:", "", *(f"- {w}" for w in s.warnings), ""]
@@ -353,6 +359,7 @@ def render_terminal(s: Summary) -> str:
                                                   for b in s.by_subtasks))
     errs = ", ".join(f"{c} {n}" for c, n in s.errors.items() if n) or "0"
     lines.append(f"{s.tasks} tasks counted; errors (not in rates): {errs}; timeouts: {sum(s.timeouts.values())}; "
+                 f"skipped (no device here): {sum(s.skipped.values())}; "
                  f"unfinished: {sum(s.unfinished.values())}; never ran: {sum(s.not_run.values())}"
                  "; SSR = mean of per-task ratios, (k/n) = subtasks")
     lines += [f"warning: {w}" for w in s.warnings]

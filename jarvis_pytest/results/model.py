@@ -15,7 +15,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, Field
 
-Status = Literal["running", "passed", "failed", "error", "timeout"]
+Status = Literal["running", "passed", "failed", "error", "timeout", "skipped"]
 
 
 class EvaluatorVerdict(BaseModel):
@@ -86,7 +86,7 @@ class TaskResult(BaseModel):
     qc_negatives: list[NegativeVerdict] | None = None  # --qc: verdicts on each near-miss wrong state (must fail)
     steps: int = 0
     end_reason: str = ""  # done | fail | max_steps | timeout | error
-    error: str | None = None  # infrastructure error text when status == "error"
+    error: str | None = None  # infrastructure error text when status == "error"; the reason when "skipped"
     egress: bool = False  # the devices could reach beyond their task network (--allow-egress)
     backends: dict[str, str] = Field(default_factory=dict)  # platform → the backend that ran it, e.g. "wine"
     durations: dict[str, float] = Field(default_factory=dict)  # boot, setup, agent, evaluate, total (seconds)

@@ -123,6 +123,7 @@ def materialise(template: TaskTemplate, values: Mapping[str, Scalar], *, fed: Ma
         settings=sorted(template.settings),
         source_platform=template.source_platform,
         max_steps=template.max_steps,
+        backends=list(template.backends) or None,
     )
 
 

@@ -213,6 +213,14 @@ def validate_template(tpl: TaskTemplate, types: TypeSystem, *, path: object = No
             raise fail(f"consumes.{name}", f"only file inputs can be consumed ({name!r} is {tpl.inputs[name].type!r})",
                        "remove it from consumes")
     check_names(tpl.evaluate, tpl.config, where, evaluators)
+    if tpl.backends:
+        from jarvis_pytest.devices.backend import ALIASES, BUILTIN
+
+        known = set(BUILTIN.get(tpl.platform, {}))
+        for i, name in enumerate(tpl.backends):
+            if ALIASES.get((tpl.platform, name), name) not in known:
+                raise fail(f"backends[{i}]", f"no {tpl.platform} backend {name!r}",
+                           f"use some of {sorted(known) or 'none (the platform has no backend yet)'}")
     for i, step in enumerate(tpl.config):
         if step.type == "upload_file" and step.fixture is not None:
             problem = fixture_problem(step.fixture)

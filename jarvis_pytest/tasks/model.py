@@ -218,6 +218,10 @@ class TaskTemplate(_Strict):
         "one platform must not change the same setting")
     source_platform: Platform | None = Field(default=None, description="built-in transfer tasks only")
     max_steps: int | None = Field(default=None, ge=1)
+    backends: list[str] = Field(
+        default_factory=list, description="the device backends of its platform the template runs on (e.g. "
+        "[\"kvm\"] for an application only a real Windows has); empty: every backend. Instances on another "
+        "backend are skipped with the reason")
     description: str = ""
 
 
@@ -251,6 +255,7 @@ class Subtask(_Strict):
     settings: list[str] = Field(default_factory=list)
     source_platform: Platform | None = None
     max_steps: int | None = None
+    backends: list[str] | None = Field(default=None, description="as the template's (absent: every backend)")
 
 
 class Edge(_Strict):

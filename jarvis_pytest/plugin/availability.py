@@ -1,0 +1,33 @@
+"""Which tasks this machine can run: a task whose platform has no backend that runs here (Android without an
+emulator or a phone), or whose template is written for another backend than the one that runs here (Paint
+needs a real Windows, not Wine), is skipped — with the reason and what would run it — and counted apart."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from jarvis_pytest.devices.backend import Backend, backend_for, backends_of
+from jarvis_pytest.errors import JarvisError
+
+
+def _how(platform: str) -> str:
+    hints = [f"{b.name}: {b.how_to_run}" for b in backends_of(platform).values() if b.how_to_run]
+    return "; ".join(hints) or f"a {platform} device backend"
+
+
+def skip_reason(task: dict[str, Any], choices: dict[str, str]) -> str | None:
+    """Why this machine cannot run `task` with the chosen backends (None: it can)."""
+    chosen: dict[str, Backend] = {}
+    for sub in task["formatted_subtasks"]:
+        platform = sub["platform"]
+        if platform not in chosen:
+            try:
+                chosen[platform] = backend_for(platform, choices.get(platform))
+            except JarvisError as exc:
+                return f"no {platform} device on this machine ({exc}); to run it: {_how(platform)}"
+        backend = chosen[platform]
+        wanted = sub.get("backends") or []
+        if wanted and backend.name not in wanted:
+            return (f"{sub.get('template')} needs the {platform} backend {' or '.join(wanted)}; this machine runs "
+                    f"{backend.label}; to run it: {_how(platform)}")
+    return None
