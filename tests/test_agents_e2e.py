@@ -14,7 +14,8 @@ import pytest
 from jarvis_pytest.agents.planner_grounder import render_step
 from jarvis_pytest.llm.fake_server import FakeChatServer
 from jarvis_pytest.report.rollup import load_results
-from jarvis_pytest.tasks.harness_api import atomic_tasks
+from jarvis_pytest.tasks.instances import atomic_instances
+from jarvis_pytest.tasks.library import load_library
 
 pytestmark = pytest.mark.containers
 REPO = Path(__file__).resolve().parents[1]
@@ -34,8 +35,8 @@ def steps(run_dir: Path) -> list[dict]:
 
 @pytest.fixture(scope="module")
 def model_run(device_images, tmp_path_factory):
-    task = next(t for t in atomic_tasks(REPO / "tasks", 1) if t["id"] == TASK)
-    text = task["formatted_subtasks"][0]["input"]["note_text"]["value"]
+    task = next(t for t in atomic_instances(load_library(REPO / "tasks"), 1) if t.id == TASK)
+    text = task.formatted_subtasks[0].input["note_text"].value
     fake = FakeChatServer(models=("planner", "grounder"))
     fake.script(
         "I would type the note now.",  # no <step>: must come back as an error step, not a crash

@@ -103,9 +103,11 @@ def case_bad_json_dataset(tmp: Path):
 
 
 def case_dataset_unknown_evaluator(tmp: Path):
-    from jarvis_pytest.tasks.harness_api import atomic_tasks
+    from jarvis_pytest.tasks.instances import atomic_instances
+    from jarvis_pytest.tasks.library import load_library
 
-    task = next(t for t in atomic_tasks(REPO / "tasks", 1) if t["id"].startswith("ubuntu-thunar-rename_file"))
+    task = next(t.to_json() for t in atomic_instances(load_library(REPO / "tasks"), 1)
+                if t.id.startswith("ubuntu-thunar-rename_file"))
     task = dict(task, id="x1", category="sw")
     task["formatted_subtasks"] = [dict(task["formatted_subtasks"][0], evaluate=[{"func": "nope", "args": {}}])] * 2
     task["edges"] = []

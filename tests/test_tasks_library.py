@@ -10,7 +10,6 @@ import pytest
 
 from jarvis_pytest.cli import main
 from jarvis_pytest.errors import ConfigError
-from jarvis_pytest.tasks import harness_api
 from jarvis_pytest.tasks.graph import task_problems
 from jarvis_pytest.tasks.instances import atomic_instances, materialise
 from jarvis_pytest.tasks.library import load_library
@@ -94,14 +93,14 @@ def test_same_type_as_takes_the_bound_type(library):
     assert sub.output["renamed_file"].value == "/home/user/y.jpg"
 
 
-def test_harness_api_returns_dataset_dicts(tmp_path):
-    tasks = harness_api.atomic_tasks(LIBRARY, 1)
-    assert tasks[0]["id"].endswith("[seed0]") and tasks[0]["category"] == "atomic"
-    sub = tasks[0]["formatted_subtasks"][0]
+def test_atomic_instances_are_typed_tasks_in_the_dataset_format(tmp_path):
+    tasks = atomic_instances(load_library(LIBRARY), 1)
+    assert tasks[0].id.endswith("[seed0]") and tasks[0].category == "atomic"
+    sub = tasks[0].to_json()["formatted_subtasks"][0]
     assert {"template", "platform", "app", "instruction", "input", "output", "config", "evaluate", "solution"} <= set(sub)
     empty = tmp_path / "empty"
     empty.mkdir()
-    assert harness_api.atomic_tasks(empty, 2) == []
+    assert atomic_instances(load_library(empty), 2) == []
 
 
 def test_cli_templates_lists_and_checks_the_library(capsys):

@@ -52,11 +52,7 @@ class OracleAgent:
         self.failed: AgentStep | None = None
 
     def reset(self, task: TaskContext) -> None:
-        self.queue = [
-            (step.get("platform") or sub["platform"], step)
-            for sub in task.subtasks
-            for step in sub.get("solution", [])
-        ]
+        self.queue = [(step.platform or sub.platform, step) for sub in task.subtasks for step in sub.solution]
         self.last_platform = task.platforms[0] if task.platforms else None
         self.failed = None
 
@@ -70,22 +66,21 @@ class OracleAgent:
             return AgentStep(platform=self.last_platform, action=Done(), reasoning="oracle solution complete")
         platform, step = self.queue.pop(0)
         self.last_platform = platform
-        if "action" in step:
-            return AgentStep(platform=platform, action=parse_action(step["action"]),
-                             reasoning=step.get("note", "oracle solution step"))
+        if step.action is not None:
+            return AgentStep(platform=platform, action=parse_action(step.action),
+                             reasoning=step.note or "oracle solution step")
         t0 = time.monotonic()
-        result = self.devices[platform].run(step["command"], user=step.get("user"),
-                                            timeout=float(step.get("timeout", 120)))
-        record = {"platform": platform, "command": step["command"], "user": step.get("user"),
+        result = self.devices[platform].run(step.command, user=step.user, timeout=float(step.timeout or 120))
+        record = {"platform": platform, "command": step.command, "user": step.user,
                   "returncode": result.returncode, "seconds": round(time.monotonic() - t0, 3),
                   "output": (result.stdout[-500:] + result.stderr[-500:]).strip()}
-        reasoning = step.get("note") or "oracle command"
+        reasoning = step.note or "oracle command"
         if result.returncode != 0:
             self.failed = AgentStep(platform=platform, action=Fail(), extra={"commands": [record]},
-                                    reasoning=f"oracle command failed ({result.returncode}): {step['command']}\n"
+                                    reasoning=f"oracle command failed ({result.returncode}): {step.command}\n"
                                               f"{result.stdout[-1000:]}{result.stderr[-1000:]}")
             return self.failed
-        return AgentStep(platform=platform, action=Wait(seconds=0), reasoning=f"{reasoning}: $ {step['command'][:300]}",
+        return AgentStep(platform=platform, action=Wait(seconds=0), reasoning=f"{reasoning}: $ {step.command[:300]}",
                          extra={"commands": [record]})
 
     def config(self) -> dict[str, Any]:

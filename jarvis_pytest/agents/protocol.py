@@ -24,7 +24,7 @@ class TaskContext:
     instruction: str
     platforms: tuple[str, ...]  # the platforms the task uses
     transfer: dict[str, str] = field(default_factory=dict)  # url, user, password of the network drive
-    subtasks: tuple[dict[str, Any], ...] = ()  # the formatted subtasks; only the oracle may look at them
+    subtasks: tuple[Any, ...] = ()  # the formatted subtasks (`tasks.model.Subtask`); only the oracle may look
 
 
 @dataclass

@@ -4,10 +4,9 @@ needs a real Windows, not Wine), is skipped — with the reason and what would r
 
 from __future__ import annotations
 
-from typing import Any
-
 from jarvis_pytest.devices.backend import Backend, backend_for, backends_of
 from jarvis_pytest.errors import JarvisError
+from jarvis_pytest.tasks.model import Task
 
 
 def _how(platform: str) -> str:
@@ -15,19 +14,19 @@ def _how(platform: str) -> str:
     return "; ".join(hints) or f"a {platform} device backend"
 
 
-def skip_reason(task: dict[str, Any], choices: dict[str, str]) -> str | None:
+def skip_reason(task: Task, choices: dict[str, str]) -> str | None:
     """Why this machine cannot run `task` with the chosen backends (None: it can)."""
     chosen: dict[str, Backend] = {}
-    for sub in task["formatted_subtasks"]:
-        platform = sub["platform"]
+    for sub in task.formatted_subtasks:
+        platform = sub.platform
         if platform not in chosen:
             try:
                 chosen[platform] = backend_for(platform, choices.get(platform))
             except JarvisError as exc:
                 return f"no {platform} device on this machine ({exc}); to run it: {_how(platform)}"
         backend = chosen[platform]
-        wanted = sub.get("backends") or []
+        wanted = sub.backends or []
         if wanted and backend.name not in wanted:
-            return (f"{sub.get('template')} needs the {platform} backend {' or '.join(wanted)}; this machine runs "
+            return (f"{sub.template} needs the {platform} backend {' or '.join(wanted)}; this machine runs "
                     f"{backend.label}; to run it: {_how(platform)}")
     return None

@@ -9,6 +9,7 @@ from typing import Any
 import pytest
 
 from jarvis_pytest.plugin.options import JarvisOptions
+from jarvis_pytest.tasks.model import Task
 
 CATEGORY_MARKERS = ("atomic", "sw", "mi", "md")
 PROPERTY = "jarvis"  # the name of the compact task result in `report.user_properties`
@@ -19,23 +20,26 @@ def app_marker(app: str) -> str:
     return "app_" + re.sub(r"[^a-z0-9]+", "_", app.lower()).strip("_")
 
 
-def _param(task: dict[str, Any]) -> Any:
-    marks = [getattr(pytest.mark, p) for p in sorted({s["platform"] for s in task["formatted_subtasks"]})]
-    marks.append(getattr(pytest.mark, task.get("category", "atomic")))
-    for app in sorted({s.get("app") for s in task["formatted_subtasks"] if s.get("app")}):
+def _param(task: Task) -> Any:
+    marks = [getattr(pytest.mark, p) for p in sorted({s.platform for s in task.formatted_subtasks})]
+    marks.append(getattr(pytest.mark, task.category))
+    for app in sorted({s.app for s in task.formatted_subtasks if s.app}):
         marks.append(getattr(pytest.mark, app_marker(app)))
-    return pytest.param(task, id=task["id"], marks=marks)
+    return pytest.param(task, id=task.id, marks=marks)
 
 
 def params(kind: str, options: JarvisOptions, config: pytest.Config) -> list[Any]:
-    """One param per atomic instance of every template under the library folder, or per composed task of the
-    dataset files; the application markers they use are declared first, so `-m app_...` works quietly."""
-    from jarvis_pytest.tasks import harness_api
+    """One param (a `Task` model) per atomic instance of every template under the library folder, or per
+    composed task of the dataset files; the application markers they use are declared first, so `-m app_...`
+    works quietly."""
+    from jarvis_pytest.tasks.dataset import load_tasks
+    from jarvis_pytest.tasks.instances import atomic_instances
+    from jarvis_pytest.tasks.library import load_library
 
     if kind == "atomic":
-        tasks = harness_api.atomic_tasks(options.library, options.instances)
+        tasks = atomic_instances(load_library(options.library), options.instances)
     else:
-        tasks = harness_api.composed_tasks(options.datasets)
-    for app in sorted({s["app"] for t in tasks for s in t["formatted_subtasks"] if s.get("app")}):
+        tasks = load_tasks(options.datasets)
+    for app in sorted({s.app for t in tasks for s in t.formatted_subtasks if s.app}):
         config.addinivalue_line("markers", f"{app_marker(app)}: tasks of the application {app}")
     return [_param(t) for t in tasks]

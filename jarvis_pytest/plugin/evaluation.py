@@ -2,37 +2,38 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Sequence
 
 from jarvis_pytest.devices.base import Device
 from jarvis_pytest.errors import ConfigError, InfrastructureError
 from jarvis_pytest.evaluators import get_evaluator
 from jarvis_pytest.evaluators.state import FinalState
 from jarvis_pytest.results.model import EvaluatorVerdict, SubtaskVerdict, TaskResult
+from jarvis_pytest.tasks.model import Subtask
 
 
-def capture_baselines(subtasks: list[dict[str, Any]], devices: dict[str, Device]) -> dict[tuple[str, str], bytes]:
+def capture_baselines(subtasks: Sequence[Subtask], devices: dict[str, Device]) -> dict[tuple[str, str], bytes]:
     """The content of every subtask's `baseline` paths right after set-up (paths that do not exist are left out)."""
     out: dict[tuple[str, str], bytes] = {}
     for sub in subtasks:
-        state = FinalState(platform=sub["platform"], devices=devices)
-        for path in sub.get("baseline", []):
+        state = FinalState(platform=sub.platform, devices=devices)
+        for path in sub.baseline:
             data = state.pull(path)
             if data is not None:
-                out[(sub["platform"], path)] = data
+                out[(sub.platform, path)] = data
     return out
 
 
-def evaluate_subtasks(subtasks: list[dict[str, Any]], devices: dict[str, Device], transfer: Any,
+def evaluate_subtasks(subtasks: Sequence[Subtask], devices: dict[str, Device], transfer: Any,
                       baselines: dict[tuple[str, str], bytes] | None = None) -> list[SubtaskVerdict]:
     """Verdicts per subtask. An evaluator that raises (other than an infrastructure error) fails with its error."""
     verdicts: list[SubtaskVerdict] = []
     for index, sub in enumerate(subtasks):
-        state = FinalState(platform=sub["platform"], devices=devices, transfer=transfer, baselines=baselines or {})
+        state = FinalState(platform=sub.platform, devices=devices, transfer=transfer, baselines=baselines or {})
         results: list[EvaluatorVerdict] = []
-        for spec in sub.get("evaluate", []):
-            func_name = spec.get("func")
-            args = dict(spec.get("args", {}))
+        for spec in sub.evaluate:
+            func_name = spec.func
+            args = dict(spec.args)
             try:
                 verdict = get_evaluator(func_name)(state, **args)
                 passed, reason = verdict.passed, verdict.reason
@@ -41,7 +42,7 @@ def evaluate_subtasks(subtasks: list[dict[str, Any]], devices: dict[str, Device]
             except Exception as exc:  # an evaluator bug or an unreadable file is a failed check, with its reason
                 passed, reason = False, f"evaluator raised {exc.__class__.__name__}: {exc}"
             results.append(EvaluatorVerdict(func=func_name, args=args, passed=passed, reason=reason))
-        verdicts.append(SubtaskVerdict(index=index, template=sub.get("template", ""), platform=sub["platform"],
+        verdicts.append(SubtaskVerdict(index=index, template=sub.template, platform=sub.platform,
                                        passed=bool(results) and all(r.passed for r in results), evaluators=results))
     return verdicts
 

@@ -20,6 +20,7 @@ from jarvis_pytest.plugin.loop import LoopLimits, LoopOutcome, run_loop
 from jarvis_pytest.plugin.setup_steps import run_setup
 from jarvis_pytest.results.model import TaskResult
 from jarvis_pytest.results.writer import TaskRecorder
+from jarvis_pytest.tasks.model import Task
 
 
 def agent_key(agent_config: dict[str, Any], limits: LoopLimits) -> str:
@@ -46,9 +47,9 @@ class RunContext:
         return self.agent.config()
 
 
-def task_platforms(task: dict[str, Any]) -> tuple[str, ...]:
+def task_platforms(task: Task) -> tuple[str, ...]:
     """The device platforms a task needs, sorted."""
-    return tuple(sorted(set(task.get("devices") or [s["platform"] for s in task["formatted_subtasks"]])))
+    return tuple(sorted(set(task.devices or [s.platform for s in task.formatted_subtasks])))
 
 
 def _passed(result: TaskResult) -> bool:
@@ -63,14 +64,14 @@ def _passed(result: TaskResult) -> bool:
     return passed
 
 
-def run_task(task: dict[str, Any], ctx: RunContext) -> TaskResult:
-    """Run `task` (one entry of the dataset format) and return its result; raises on infrastructure errors
-    after recording them in result.json with status "error"."""
+def run_task(task: Task, ctx: RunContext) -> TaskResult:
+    """Run `task` and return its result; raises on infrastructure errors after recording them in result.json
+    with status "error"."""
     platforms = task_platforms(task)
-    subtasks = task["formatted_subtasks"]
+    subtasks = task.formatted_subtasks
     config = ctx.agent_config
-    result = TaskResult(task_id=task["id"], category=task.get("category", "atomic"), platforms=list(platforms),
-                        instruction=task["instruction"], status="running", agent=config,
+    result = TaskResult(task_id=task.id, category=task.category, platforms=list(platforms),
+                        instruction=task.instruction, status="running", agent=config,
                         agent_key=agent_key(config, ctx.limits), egress=ctx.egress)
     recorder = TaskRecorder(ctx.run_dir, result)
     t_start = time.monotonic()
@@ -89,7 +90,7 @@ def run_task(task: dict[str, Any], ctx: RunContext) -> TaskResult:
         transfer = {"url": f"http://{TRANSFER_ALIAS}:{TRANSFER_PORT}", "user": TRANSFER_USER,
                     "password": TRANSFER_PASSWORD, "folder": TRANSFER_FOLDER,
                     "flavour": getattr(env.transfer, "flavour", "copyparty")}
-        ctx.agent.reset(TaskContext(task_id=task["id"], instruction=task["instruction"], platforms=platforms,
+        ctx.agent.reset(TaskContext(task_id=task.id, instruction=task.instruction, platforms=platforms,
                                     transfer=transfer, subtasks=tuple(subtasks)))
         if hasattr(ctx.agent, "attach_devices"):
             ctx.agent.attach_devices(env.devices)

@@ -26,6 +26,7 @@ from jarvis_pytest.results import run_state
 from jarvis_pytest.results.model import TaskResult
 from jarvis_pytest.plugin.availability import skip_reason
 from jarvis_pytest.results.writer import now_iso, read_result, task_dir, write_json_atomic
+from jarvis_pytest.tasks.model import Task
 
 PROPERTY = cases.PROPERTY
 PLUGIN_NAME = "jarvis-session"
@@ -36,10 +37,10 @@ def get(config: pytest.Config) -> "JarvisSession":
     return config.pluginmanager.get_plugin(PLUGIN_NAME)
 
 
-def _task_of(item: pytest.Item) -> dict[str, Any] | None:
+def _task_of(item: pytest.Item) -> Task | None:
     """The task of a task case (None for other items, and for an empty parameter set)."""
     task = getattr(getattr(item, "callspec", None), "params", {}).get("jarvis_task")
-    return task if isinstance(task, dict) else None
+    return task if isinstance(task, Task) else None
 
 
 def _sigterm_as_interrupt() -> None:
@@ -94,7 +95,7 @@ class JarvisSession:
                 raise pytest.UsageError(f"bad task data: {exc}") from None
         return self._params[kind]
 
-    def all_tasks(self) -> list[dict[str, Any]]:
+    def all_tasks(self) -> list[Task]:
         return [p.values[0] for kind in ("atomic", "composed") for p in self.params(kind)]
 
     def start(self) -> None:
@@ -126,7 +127,7 @@ class JarvisSession:
         self.state.start(agent=agent.config(), agent_key=key, egress=self.options.allow_egress,
                          options={"max_steps": self.options.limits.max_steps, "instances": self.options.instances})
 
-    def _check_resume(self, key: str, agent_config: dict[str, Any], tasks: list[dict[str, Any]]) -> None:
+    def _check_resume(self, key: str, agent_config: dict[str, Any], tasks: list[Task]) -> None:
         run_dir = self.run_dir
         fix_new = "or start a new run (drop --resume)"
         if not run_state.is_run_dir(run_dir):
@@ -147,7 +148,7 @@ class JarvisSession:
                               field="--resume", fix="resume with the same --agent, models and --max-steps, "
                               + fix_new)
         digests = run_state.read_plan(run_dir)["digests"]
-        changed = sorted(t["id"] for t in tasks if t["id"] in digests and digests[t["id"]] != run_state.task_digest(t))
+        changed = sorted(t.id for t in tasks if t.id in digests and digests[t.id] != run_state.task_digest(t))
         if changed:
             more = f" and {len(changed) - 3} more" if len(changed) > 3 else ""
             raise ConfigError(f"tasks changed since the run was planned: {', '.join(changed[:3])}{more}",
@@ -169,7 +170,7 @@ class JarvisSession:
             raise pytest.UsageError("choose an agent with --agent NAME (e.g. --agent oracle to check the tasks, "
                                     "--agent holo2 with --planner-base-url/--grounder-base-url for a model)")
         # Longest tasks first (more subtasks), ties by id: keeps xdist workers busy to the end, deterministic.
-        order = {id(i): (-len(_task_of(i)["formatted_subtasks"]), i.nodeid) for i in jarvis_items}
+        order = {id(i): (-len(_task_of(i).formatted_subtasks), i.nodeid) for i in jarvis_items}
         positions = [n for n, i in enumerate(items) if id(i) in order]
         for pos, item in zip(positions, sorted(jarvis_items, key=lambda i: order[id(i)])):
             items[pos] = item
@@ -204,22 +205,22 @@ class JarvisSession:
                 self.context.environments.prewarm(task_platforms(task))
         yield
 
-    def run_case(self, request: pytest.FixtureRequest, task: dict[str, Any]) -> TaskResult:
+    def run_case(self, request: pytest.FixtureRequest, task: Task) -> TaskResult:
         agent = self.ensure_agent()
         reason = skip_reason(task, self.options.backends)
         if reason is not None:  # a device this machine lacks: skipped with the reason, counted apart, never failed
-            result = TaskResult(task_id=task["id"], category=task.get("category", "atomic"),
-                                platforms=list(task_platforms(task)), instruction=task["instruction"],
+            result = TaskResult(task_id=task.id, category=task.category,
+                                platforms=list(task_platforms(task)), instruction=task.instruction,
                                 status="skipped", error=reason, agent=agent.config(),
                                 agent_key=agent_key(agent.config(), self.options.limits), started=now_iso(),
                                 finished=now_iso())
-            folder = task_dir(self.run_dir, task["id"])
+            folder = task_dir(self.run_dir, task.id)
             folder.mkdir(parents=True, exist_ok=True)
             write_json_atomic(folder / "result.json", result.model_dump(mode="json"))
             request.node.user_properties.append((PROPERTY, _compact(result, self.run_dir)))
             pytest.skip(reason)
         if self.options.resume:
-            stored = read_result(self.run_dir, task["id"])
+            stored = read_result(self.run_dir, task.id)
             key = agent_key(agent.config(), self.options.limits)
             if stored is not None and stored.status in ("passed", "failed") and stored.agent_key == key:
                 request.node.user_properties.append((PROPERTY, _compact(stored, self.run_dir) | {"resumed": True}))
@@ -228,7 +229,7 @@ class JarvisSession:
         try:
             result = run_task(task, ctx)
         except (InfrastructureError, ConfigError) as exc:
-            stored = read_result(self.run_dir, task["id"])
+            stored = read_result(self.run_dir, task.id)
             if stored is not None:
                 request.node.user_properties.append((PROPERTY, _compact(stored, self.run_dir)))
             pytest.fail(f"infrastructure error ({exc.__class__.__name__}): {exc}", pytrace=False)

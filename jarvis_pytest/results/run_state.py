@@ -39,9 +39,11 @@ def read_json(path: Path) -> dict[str, Any] | None:
     return data if isinstance(data, dict) else None
 
 
-def task_digest(task: dict[str, Any]) -> str:
-    """A short hash of a task's definition: a resumed run refuses a task whose definition changed."""
-    return hashlib.sha256(json.dumps(task, sort_keys=True, default=str).encode()).hexdigest()[:16]
+def task_digest(task: Any) -> str:
+    """A short hash of a task's definition (a `Task` or its dataset dict): a resumed run refuses a task whose
+    definition changed."""
+    data = task.to_json() if hasattr(task, "to_json") else task
+    return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
 def process_alive(pid: int) -> bool:
@@ -150,14 +152,14 @@ def read_plan(run_dir: Path) -> dict[str, Any]:
     return {"tasks": tasks, "categories": categories, "digests": digests}
 
 
-def merge_plan(run_dir: Path, tasks: list[dict[str, Any]]) -> None:
-    """Add `tasks` (dataset-format dicts) to plan.json: the plan is the union over the run's sessions."""
+def merge_plan(run_dir: Path, tasks: list[Any]) -> None:
+    """Add `tasks` (`Task` models) to plan.json: the plan is the union over the run's sessions."""
     plan = read_plan(run_dir)
     ids = set(plan["tasks"])
     for t in tasks:
-        ids.add(t["id"])
-        plan["categories"][t["id"]] = t.get("category", "atomic")
-        plan["digests"][t["id"]] = task_digest(t)
+        ids.add(t.id)
+        plan["categories"][t.id] = t.category
+        plan["digests"][t.id] = task_digest(t)
     run_dir.mkdir(parents=True, exist_ok=True)
     write_json_atomic(run_dir / "plan.json", {"tasks": sorted(ids), "categories": plan["categories"],
                                               "digests": plan["digests"], "written": now_iso()})

@@ -3,8 +3,8 @@
 Modules: ``types`` (slot type hierarchy), ``model`` (pydantic models), ``templating`` (``{{slot}}``),
 ``library`` (template files), ``instances`` (sampling and M(v_I)), ``transfer`` (the built-in transfer task),
 ``graph`` (graph checks and SW/MI/MD), ``instruction`` (merged instruction), ``compose`` (Algorithm 1),
-``dataset`` (dataset files), ``llm_steps`` (optional LLM rewrite and judge), ``harness_api`` (what the pytest
-plugin calls) and ``commands`` (the CLI).
+``dataset`` (dataset files), ``llm_steps`` (optional LLM rewrite and judge) and ``commands`` (the CLI). The
+pytest plugin takes `Task` models straight from ``instances`` and ``dataset``.
 """
 
 from jarvis_pytest.tasks.compose import compose  # noqa: F401
