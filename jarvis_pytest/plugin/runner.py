@@ -41,6 +41,7 @@ class RunContext:
     on_keep: Callable[[Any], None] | None = None
     qc: bool = False  # evaluate once right after set-up as well (the quality gate, `jarvis qc`)
     egress: bool = False  # the devices may reach beyond their task network (--allow-egress)
+    prewarm_next: tuple[str, ...] | None = None  # the platforms of this worker's next task, booted ahead
 
     @property
     def agent_config(self) -> dict[str, Any]:
@@ -79,6 +80,8 @@ def run_task(task: Task, ctx: RunContext) -> TaskResult:
     progress = LoopOutcome()
     try:
         env = ctx.environments.acquire(platforms)
+        if ctx.prewarm_next:  # only now: the devices booting ahead are the next task's, never this one's
+            ctx.environments.prewarm(ctx.prewarm_next)
         result.image_ids = dict(env.image_ids)
         result.backends = dict(getattr(env, "backends", {}))
         t_boot = time.monotonic()

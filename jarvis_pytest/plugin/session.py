@@ -70,6 +70,7 @@ class JarvisSession:
         self.new_run = options.resume is None
         self.interrupted = False
         self.summary = None  # the controller's rollup, written at the end
+        self.next_platforms: tuple[str, ...] | None = None  # this worker's next task's platforms
         self._params: dict[str, list[Any]] = {}
 
     # -- start-up (controller) ------------------------------------------------------------------------------
@@ -199,10 +200,10 @@ class JarvisSession:
 
     @pytest.hookimpl(hookwrapper=True)
     def pytest_runtest_protocol(self, item: pytest.Item, nextitem: pytest.Item | None):
-        if self.options.prewarm and self.context is not None and nextitem is not None:
-            task = _task_of(nextitem)
-            if task is not None:
-                self.context.environments.prewarm(task_platforms(task))
+        """Remember the next task of this worker: its devices boot while this one runs (`run_task` starts them
+        once this task has its own)."""
+        task = _task_of(nextitem) if nextitem is not None else None
+        self.next_platforms = task_platforms(task) if task is not None and self.options.prewarm else None
         yield
 
     def run_case(self, request: pytest.FixtureRequest, task: Task) -> TaskResult:
@@ -226,6 +227,7 @@ class JarvisSession:
                 request.node.user_properties.append((PROPERTY, _compact(stored, self.run_dir) | {"resumed": True}))
                 return stored
         ctx = self.ensure_context()
+        ctx.prewarm_next = self.next_platforms
         try:
             result = run_task(task, ctx)
         except (InfrastructureError, ConfigError) as exc:
