@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from jarvis_pytest.agents.planner_grounder import render_step
+from jarvis_pytest.agents.planner import render_step
 from jarvis_pytest.llm.fake_server import FakeChatServer
 from jarvis_pytest.report.rollup import load_results
 from jarvis_pytest.tasks.instances import atomic_instances
@@ -51,8 +51,10 @@ def model_run(device_images, tmp_path_factory):
         proc = bench(run_dir, "--agent", "holo2", "--planner-base-url", fake.url, "--planner-model", "planner",
                      "--grounder-base-url", fake.url, "--grounder-model", "grounder",
                      "--planner-api-key", "sk-secret-never-written")
-        grounder_requests = fake.requests_for("grounder")
-        prompt = fake.requests_for("planner")[0].text()
+        probes = [r for r in fake.requests if isinstance(r.body, dict) and r.body.get("max_tokens") == 1]
+        grounder_requests = [r for r in fake.requests_for("grounder") if r not in probes]
+        prompt = [r for r in fake.requests_for("planner") if r not in probes][0].text()
+    assert sorted(r.model for r in probes) == ["grounder", "planner"]  # one start-up probe per model
     assert "copyparty" in prompt and "http://transfer:5244" in prompt and "/data" in prompt  # the real drive
     return run_dir, proc, grounder_requests
 

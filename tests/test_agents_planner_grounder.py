@@ -9,8 +9,8 @@ import json
 import pytest
 
 from jarvis_pytest.agents.grounding import smart_resize
-from jarvis_pytest.agents.planner_grounder import (PlannerOutputError, PlannerStep, map_action, parse_planner_output,
-                                                   render_history, render_step, render_transfer)
+from jarvis_pytest.agents.planner import (PlannerOutputError, PlannerStep, map_action, parse_planner_output,
+                                          render_history, render_step, render_transfer)
 from jarvis_pytest.agents.protocol import AgentStep, HistoryEntry, TaskContext
 from jarvis_pytest.agents.registry import load_agent
 from jarvis_pytest.devices.base import Observation

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from jarvis_pytest.agents.grounding import Grounder
-from jarvis_pytest.agents.planner_grounder import PlannerGrounderAgent
+from jarvis_pytest.agents.planner import PlannerGrounderAgent
 from jarvis_pytest.agents.protocol import Agent
 from jarvis_pytest.agents.registry import discover, known_agents, load_agent, load_grounder_class
 from jarvis_pytest.cli import main

@@ -15,7 +15,7 @@ from pathlib import Path
 import docker
 import pytest
 
-from jarvis_pytest.agents.planner_grounder import render_step
+from jarvis_pytest.agents.planner import render_step
 from jarvis_pytest.dashboard.store import ResultsStore
 from jarvis_pytest.llm.fake_server import FakeChatServer, stall
 from jarvis_pytest.report.rollup import load_results

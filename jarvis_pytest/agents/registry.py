@@ -25,7 +25,7 @@ from typing import Any, Callable
 
 from jarvis_pytest.agents.builtin import BUILTIN_AGENTS
 from jarvis_pytest.agents.grounding import Grounder
-from jarvis_pytest.agents.planner_grounder import build_planner_grounder
+from jarvis_pytest.agents.planner import build_planner_grounder
 from jarvis_pytest.agents.protocol import Agent
 from jarvis_pytest.errors import ConfigError
 
