@@ -62,21 +62,33 @@ class PlatformSpec:
             return f'if not exist "{folder}" mkdir "{folder}"'
         return f"mkdir -p '{folder}'"
 
-    def http_put_command(self, path: str, url: str, password: str) -> str:
-        """A command that uploads the file at `path` to `url` (the drive's `PW:` header) with the device's tools."""
-        if self.shell == "cmd":  # no curl.exe under Wine: the device's own Python (both Windows backends have it)
-            return (f'python -c "import urllib.request as u,sys; r=u.Request(sys.argv[2], data=open(sys.argv[1],'
-                    f"'rb').read(), method='PUT', headers={{'PW': sys.argv[3]}}); u.urlopen(r, timeout=60)\" "
-                    f'"{path}" "{url}" "{password}"')
+    def drive_put_command(self, path: str, url: str, password: str) -> str:
+        """A command that puts the file at `path` on the transfer drive at `url` (`http://transfer:5244/data/<name>`)
+        with the device's own means: curl on Linux; on Windows a copy to the drive letter `S:`, which both Windows
+        backends map to the drive (Wine has no curl.exe)."""
+        if self.shell == "cmd":
+            return f'copy /y "{path}" "{self.drive_path(url)}"'
+        if self.name == "android":  # no curl or wget on Android: HTTP/1.0 through toybox's nc
+            from jarvis_pytest.devices.android.http import put_command
+
+            return put_command(path, url, password)
         return f"curl -fsS -H 'PW: {password}' -T '{path}' '{url}'"
 
-    def http_get_command(self, url: str, path: str, password: str) -> str:
-        """A command that downloads `url` into `path` with the device's tools."""
+    def drive_get_command(self, url: str, path: str, password: str) -> str:
+        """A command that fetches the drive's file at `url` into `path` with the device's own means."""
         if self.shell == "cmd":
-            return (f'python -c "import urllib.request as u,sys; r=u.Request(sys.argv[1], headers={{\'PW\': '
-                    f"sys.argv[3]}}); open(sys.argv[2],'wb').write(u.urlopen(r, timeout=60).read())\" "
-                    f'"{url}" "{path}" "{password}"')
+            return f'copy /y "{self.drive_path(url)}" "{path}"'
+        if self.name == "android":  # see drive_put_command
+            from jarvis_pytest.devices.android.http import get_command
+
+            return get_command(url, path, password)
         return f"curl -fsS -H 'PW: {password}' -o '{path}' '{url}'"
+
+    def drive_path(self, url: str) -> str:
+        """Where a drive URL's file is on this device's drive letter (Windows: `S:\\data\\name`)."""
+        if "://" not in url:
+            return url
+        return "S:\\" + url.split("/", 3)[3].replace("/", "\\")
 
 
 PLATFORMS: dict[str, PlatformSpec] = {

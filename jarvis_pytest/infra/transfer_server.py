@@ -43,7 +43,7 @@ class TransferServer:
     provision: Callable[[str], None] | None = None          # base URL → create user and folder; after ready
     built_here: bool = True                                 # built by `jarvis images build` (else pulled)
     port: int = TRANSFER_PORT
-    storage: str = COPYPARTY_DRIVE_ROOT + TRANSFER_FOLDER   # where the drive keeps `/data` inside its container
+    storage: str = COPYPARTY_DRIVE_ROOT   # the drive's root inside its container (`/data` is a folder in it)
 
 
 def _provision_alist(base_url: str, admin_password: str) -> None:
@@ -68,8 +68,7 @@ def _alist() -> TransferServer:
         container_options={"environment": {"ALIST_ADMIN_PASSWORD": admin_password,
                                            "OPENLIST_ADMIN_PASSWORD": admin_password},
                            "tmpfs": {ALIST_DRIVE_ROOT: "mode=0777"}},
-        provision=lambda url: _provision_alist(url, admin_password), built_here=False,
-        storage=ALIST_DRIVE_ROOT + TRANSFER_FOLDER)
+        provision=lambda url: _provision_alist(url, admin_password), built_here=False, storage=ALIST_DRIVE_ROOT)
 
 
 def _copyparty() -> TransferServer:

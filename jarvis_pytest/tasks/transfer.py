@@ -5,8 +5,8 @@ the source platform; output ``received_file`` is the same file, under the same n
 transfer folder (`PlatformSpec.transfer_folder`), with the upstream file's own type. The agent moves it through
 the network drive (address and credentials are given to the agent separately). Evaluators: the file exists on
 the destination, and passed through the drive. The oracle solution uploads on the source and downloads on the
-destination with each device's own tools (`PlatformSpec.http_put_command`/`http_get_command`: curl on Linux,
-the device's Python on Windows, where Wine has no curl.exe), against the copyparty flavour of the drive.
+destination with each device's own means (`PlatformSpec.drive_put_command`/`drive_get_command`: curl on Linux,
+a copy to the drive letter `S:` on Windows, where Wine has no curl.exe), against the copyparty flavour.
 """
 
 from __future__ import annotations
@@ -35,8 +35,8 @@ def transfer_template(source: str, dest: str) -> TaskTemplate:
     if source == dest:
         raise ValueError("a transfer task needs two different platforms")
     src, dst = spec(source).device_name, spec(dest).device_name
-    upload = spec(source).http_put_command(f"{{{{{TRANSFER_INPUT}}}}}", _URL, TRANSFER_PASSWORD)
-    download = spec(dest).http_get_command(_URL, f"{{{{{TRANSFER_OUTPUT}}}}}", TRANSFER_PASSWORD)
+    upload = spec(source).drive_put_command(f"{{{{{TRANSFER_INPUT}}}}}", _URL, TRANSFER_PASSWORD)
+    download = spec(dest).drive_get_command(_URL, f"{{{{{TRANSFER_OUTPUT}}}}}", TRANSFER_PASSWORD)
     return TaskTemplate(
         id=f"transfer-{source}-to-{dest}",
         platform=dest,

@@ -1,0 +1,23 @@
+"""`python.exe -m winserver --port 5000` (the package's name inside the device), or `--wait-desktop SECONDS`."""
+
+import sys
+
+sys.modules["_wmi"] = None  # platform.system() would crash through _wmi under Wine; plain WinAPI answers instead
+
+import argparse  # noqa: E402
+
+from . import win32  # noqa: E402
+
+win32.SetProcessDPIAware()  # coordinates and screenshots in physical pixels
+
+from .app import serve, wait_desktop  # noqa: E402
+
+parser = argparse.ArgumentParser(prog="jarvis-control-server-windows")
+parser.add_argument("--host", default="0.0.0.0", help="inside the device; Docker publishes it on 127.0.0.1 only")
+parser.add_argument("--port", type=int, default=5000)
+parser.add_argument("--wait-desktop", type=float, metavar="SECONDS",
+                    help="only wait until the desktop is up (exit 0) or the time is over (exit 1)")
+args = parser.parse_args()
+if args.wait_desktop is not None:
+    sys.exit(0 if wait_desktop(args.wait_desktop) else 1)
+serve(args.host, args.port)

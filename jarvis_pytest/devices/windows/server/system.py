@@ -1,0 +1,163 @@
+"""Commands (`cmd /c` in a Job object, killed with everything it started on timeout), files by Windows path,
+program launch by name or path, opening a file with its associated program."""
+
+from __future__ import annotations
+
+import ctypes
+import ntpath
+import os
+import shutil
+import subprocess
+import threading
+
+from . import win32 as w
+
+USERS_ALLOWED = {"", "user", "root", "admin", "administrator", "system"}  # all run as the server's own account
+KNOWN_PROGRAMS = {  # programs Windows (and Wine) has but not on PATH, found through App Paths on real Windows
+    "wordpad": r"%ProgramFiles%\Windows NT\Accessories\wordpad.exe",
+    "iexplore": r"%ProgramFiles%\Internet Explorer\iexplore.exe",
+    "msedge": r"%ProgramFiles(x86)%\Microsoft\Edge\Application\msedge.exe",
+}
+
+
+class PathError(ValueError):
+    """A path that is not an absolute Windows path."""
+
+
+def windows_path(path: str) -> str:
+    """An absolute Windows path (`C:\\...`; forward slashes accepted), normalised; PathError otherwise."""
+    p = path.replace("/", "\\")
+    drive, rest = ntpath.splitdrive(p)
+    if not drive or not rest.startswith("\\"):
+        raise PathError(f"path {path!r} must be an absolute Windows path such as C:\\Users\\user\\Desktop\\a.txt")
+    return ntpath.normpath(p)
+
+
+def decode(data: bytes) -> str:
+    """Command output as text: UTF-16 when it is (`cmd /u`), UTF-8 when it is valid UTF-8, else the ANSI code page
+    (what `cmd` writes without a console, e.g. cp1252), else the OEM one. Characters outside the ANSI code page
+    (e.g. CJK in `echo`) are lost by `cmd` itself before they reach us, as on Windows."""
+    if data.startswith(b"\xff\xfe") or (len(data) >= 4 and data[1:4:2] == b"\0\0" and data[0] and data[2]):
+        try:
+            return data.decode("utf-16-le").lstrip("\ufeff")
+        except UnicodeDecodeError:
+            pass
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        pass
+    for cp in (w.GetACP(), w.GetOEMCP()):
+        try:
+            return data.decode(f"cp{cp}")
+        except (UnicodeDecodeError, LookupError):
+            continue
+    return data.decode("utf-8", "replace")
+
+
+def _job() -> int:
+    job = w.CreateJobObjectW(None, None)
+    if not job:
+        raise OSError(f"CreateJobObject failed (error {ctypes.get_last_error()})")
+    return job
+
+
+def run(command: str, timeout: float) -> dict:
+    """Run `command` with `cmd /c`; on timeout the command and every process it started are killed (return code
+    124). Programs it leaves running in the background keep running (e.g. `start notepad`)."""
+    job = _job()
+    try:
+        # Without a console (DETACHED_PROCESS): under Wine a console costs a conhost, 0.3-1 s per command.
+        proc = subprocess.Popen(f'cmd.exe /d /s /c "{command}"', stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, creationflags=w.CREATE_SUSPENDED | w.DETACHED_PROCESS,
+                                cwd=os.path.expanduser("~"))
+        handle = int(proc._handle)  # the process handle Popen holds
+        w.AssignProcessToJobObject(job, handle)  # before it runs: whatever it starts belongs to the job too
+        w.NtResumeProcess(handle)
+        try:
+            out, err = proc.communicate(timeout=timeout)
+            code = proc.returncode
+        except subprocess.TimeoutExpired:
+            w.TerminateJobObject(job, 124)
+            try:
+                out, err = proc.communicate(timeout=5)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                out, err = b"", b""
+            code, err = 124, err + f"timed out after {timeout:g} s".encode()
+    finally:
+        w.CloseHandle(job)
+    return {"returncode": code, "stdout": decode(out), "stderr": decode(err)}
+
+
+def resolve(app: str) -> str | None:
+    """The executable of a program name (on PATH, with PATHEXT; App Paths; known places) or of a full path."""
+    if "\\" in app or "/" in app or ":" in app:
+        path = os.path.expandvars(app)
+        for candidate in (path, path + ".exe"):
+            if os.path.isfile(candidate):
+                return candidate
+        return None
+    found = shutil.which(app)
+    if found:
+        return found
+    name = app if app.lower().endswith(".exe") else app + ".exe"
+    import winreg
+
+    for root in (winreg.HKEY_CURRENT_USER, winreg.HKEY_LOCAL_MACHINE):
+        try:
+            path = os.path.expandvars(winreg.QueryValue(root, rf"Software\Microsoft\Windows\CurrentVersion\App Paths"
+                                                              rf"\{name}").strip('"'))
+            if os.path.isfile(path):
+                return path
+        except OSError:
+            continue
+    known = KNOWN_PROGRAMS.get(app.lower().removesuffix(".exe"))
+    if known and os.path.isfile(os.path.expandvars(known)):
+        return os.path.expandvars(known)
+    return None
+
+
+def _reap(proc: subprocess.Popen) -> None:
+    threading.Thread(target=proc.wait, name="reap", daemon=True).start()
+
+
+def launch(app: str, args: list[str]) -> None:
+    """Start a program detached from the server (a console program in its own console window);
+    FileNotFoundError when there is no such program."""
+    exe = resolve(app)
+    if exe is None:
+        raise FileNotFoundError(app)
+    # No standard handles given: a console program talks to its new console window (cmd stays open).
+    flags = subprocess.CREATE_NEW_CONSOLE | subprocess.CREATE_NEW_PROCESS_GROUP
+    proc = subprocess.Popen([exe, *args], creationflags=flags, cwd=os.path.expanduser("~"))
+    _reap(proc)
+
+
+def open_path(path: str) -> None:
+    """Open a file or folder with its associated program (ShellExecuteEx "open")."""
+    mask = w.SEE_MASK_FLAG_NO_UI | w.SEE_MASK_NOASYNC | w.SEE_MASK_NOCLOSEPROCESS
+    info = w.SHELLEXECUTEINFOW(cbSize=ctypes.sizeof(w.SHELLEXECUTEINFOW), lpVerb="open", lpFile=path,
+                               nShow=w.SW_SHOWNORMAL, fMask=mask, lpDirectory=ntpath.dirname(path))
+    if not w.ShellExecuteExW(ctypes.byref(info)):
+        raise OSError(ctypes.get_last_error(), f"no program opens {path} (error {ctypes.get_last_error()})")
+    if info.hProcess:
+        w.CloseHandle(info.hProcess)
+
+
+def write_file(path: str, data: bytes) -> None:
+    os.makedirs(ntpath.dirname(path), exist_ok=True)
+    with open(path, "wb") as f:
+        f.write(data)
+
+
+def read_file(path: str) -> bytes:
+    with open(path, "rb") as f:
+        return f.read()
+
+
+def exists(path: str) -> dict:
+    if os.path.isdir(path):
+        return {"exists": True, "kind": "dir"}
+    if os.path.exists(path):
+        return {"exists": True, "kind": "file"}
+    return {"exists": False, "kind": None}

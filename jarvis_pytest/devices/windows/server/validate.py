@@ -1,0 +1,141 @@
+"""Request validation by hand (the embeddable Python has no pydantic): the unified action space of
+`jarvis_pytest/devices/actions.py` and the request bodies of `protocol.py`, with messages that name the field,
+e.g. ``invalid request: CLICK.clicks: must be an integer in [1, 3]``. Mirrors those models; keep them in step."""
+
+from __future__ import annotations
+
+import json
+import math
+
+REQUIRED = object()
+BUTTONS = ("left", "middle", "right")
+SYSTEM_BUTTONS = ("home", "back", "menu", "enter", "volume_up", "volume_down", "power")
+
+
+class Invalid(ValueError):
+    """A request that does not match its schema; the message names the field."""
+
+
+def _int(lo=None, hi=None, optional=False):
+    return ("int", lo, hi, optional, False)
+
+
+def _float(lo=None, hi=None, above=False):
+    """A number in [lo, hi], or in (lo, hi] when `above`."""
+    return ("float", lo, hi, False, above)
+
+
+# field → (kind, ...), default (REQUIRED when there is none)
+_XY_OPT = {"x": (_int(optional=True), None), "y": (_int(optional=True), None)}
+ACTIONS: dict[str, dict[str, tuple]] = {
+    "MOVE_TO": {"x": (_int(), REQUIRED), "y": (_int(), REQUIRED)},
+    "CLICK": {**_XY_OPT, "button": (("enum", BUTTONS), "left"), "clicks": (_int(1, 3), 1)},
+    "MOUSE_DOWN": {"button": (("enum", BUTTONS), "left")},
+    "MOUSE_UP": {"button": (("enum", BUTTONS), "left")},
+    "RIGHT_CLICK": dict(_XY_OPT),
+    "DOUBLE_CLICK": dict(_XY_OPT),
+    "DRAG_TO": {"x": (_int(), REQUIRED), "y": (_int(), REQUIRED), "start_x": (_int(optional=True), None),
+                "start_y": (_int(optional=True), None)},
+    "SCROLL": {"dx": (_int(), 0), "dy": (_int(), 0), **_XY_OPT},
+    "SWIPE": {"x": (_int(), REQUIRED), "y": (_int(), REQUIRED), "dx": (_int(), REQUIRED), "dy": (_int(), REQUIRED),
+              "duration": (_int(0, 10_000), 300)},
+    "LONG_PRESS": {"x": (_int(), REQUIRED), "y": (_int(), REQUIRED), "duration": (_int(0, 10_000), 800)},
+    "TYPING": {"text": (("str", 0), REQUIRED)},
+    "KEY_DOWN": {"key": (("str", 0), REQUIRED)},
+    "KEY_UP": {"key": (("str", 0), REQUIRED)},
+    "HOTKEY": {"keys": (("strlist",), REQUIRED)},
+    "SYSTEM_BUTTON": {"button": (("enum", SYSTEM_BUTTONS), REQUIRED)},
+    "WAIT": {"seconds": (_float(0, 60), 1.0)},
+    "DONE": {},
+    "FAIL": {},
+    "PYAUTOGUI": {"script": (("str", 0), REQUIRED)},
+}
+REQUESTS: dict[str, dict[str, tuple]] = {
+    "run": {"command": (("str", 1), REQUIRED), "user": (("str?",), None),
+            "timeout": (_float(0, 3600, above=True), 60.0)},
+    "launch": {"app": (("str", 1), REQUIRED), "args": (("strlist0",), []), "window_wait": (_float(0, 120), 0.0)},
+    "open": {"path": (("str", 1), REQUIRED), "window_wait": (_float(0, 120), 0.0)},
+    "clipboard": {"text": (("str", 0), REQUIRED)},
+}
+
+
+def _check(where: str, name: str, spec: tuple, value):
+    kind = spec[0]
+    field = f"{where}.{name}"
+    if kind in ("int", "float"):
+        _, lo, hi, optional, above = spec
+        if value is None and optional:
+            return None
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or (
+                kind == "int" and isinstance(value, float) and not value.is_integer()) or (
+                isinstance(value, float) and not math.isfinite(value)):
+            raise Invalid(f"{field}: must be {'an integer' if kind == 'int' else 'a number'}"
+                          f"{' or null' if optional else ''}, not {json.dumps(value)}")
+        value = int(value) if kind == "int" else float(value)
+        low_ok = lo is None or (value > lo if above else value >= lo)
+        if not low_ok or (hi is not None and value > hi):
+            raise Invalid(f"{field}: must be {'an integer' if kind == 'int' else 'a number'} in "
+                          f"{'(' if above else '['}{lo}, {hi}], not {value}")
+        return value
+    if kind == "enum":
+        if value not in spec[1]:
+            raise Invalid(f"{field}: must be one of {', '.join(spec[1])}, not {json.dumps(value)}")
+        return value
+    if kind == "str":
+        if not isinstance(value, str):
+            raise Invalid(f"{field}: must be a string, not {json.dumps(value)}")
+        if len(value) < spec[1]:
+            raise Invalid(f"{field}: must not be empty")
+        return value
+    if kind == "str?":
+        if value is not None and not isinstance(value, str):
+            raise Invalid(f"{field}: must be a string or null")
+        return value
+    if kind in ("strlist", "strlist0"):
+        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+            raise Invalid(f"{field}: must be a list of strings, not {json.dumps(value)}")
+        if kind == "strlist" and not value:
+            raise Invalid(f"{field}: must hold at least one key")
+        return value
+    raise AssertionError(kind)
+
+
+def _fields(where: str, schema: dict[str, tuple], data: dict) -> dict:
+    unknown = sorted(set(data) - set(schema) - {"type"})
+    if unknown:
+        raise Invalid(f"{where}.{unknown[0]}: extra field not permitted")
+    out = {}
+    for name, (spec, default) in schema.items():
+        if name not in data:
+            if default is REQUIRED:
+                raise Invalid(f"{where}.{name}: field required")
+            out[name] = default
+        else:
+            out[name] = _check(where, name, spec, data[name])
+    return out
+
+
+def _json(body: bytes):
+    try:
+        return json.loads(body or b"{}")
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise Invalid(f"body is not JSON: {exc}") from None
+
+
+def action(body: bytes) -> dict:
+    """One action as a dict with `type` and every field (defaults filled in)."""
+    data = _json(body)
+    if not isinstance(data, dict):
+        raise Invalid("an action must be a JSON object with a `type`")
+    kind = data.get("type")
+    if kind not in ACTIONS:
+        raise Invalid(f"type: {json.dumps(kind)} is not an action type (one of {', '.join(ACTIONS)})")
+    return {"type": kind, **_fields(kind, ACTIONS[kind], data)}
+
+
+def request(name: str, body: bytes) -> dict:
+    """The body of a `run`, `launch`, `open` or `clipboard` request, checked, defaults filled in."""
+    data = _json(body)
+    if not isinstance(data, dict):
+        raise Invalid("the body must be a JSON object")
+    return _fields(name, REQUESTS[name], data)

@@ -1,0 +1,582 @@
+"""The Windows device (Wine backend) through its Windows-native control server, booted as a task's devices are
+(the Lifecycle: a closed task network, the copyparty drive whose storage is shared with the device as `S:`):
+observation, every action by its effect in real Windows programs (Notepad's Save As dialog, menus, window
+moves), exact typing, files, clipboard, commands, programs, accessibility, bad input, the drive, a transfer to an
+Ubuntu device. One environment serves the module; everything created is removed and checked gone. They fail
+(never skip) when no engine or image can be had."""
+
+from __future__ import annotations
+
+import io
+import threading
+import time
+import uuid
+import zlib
+from dataclasses import dataclass
+from typing import Any
+
+import httpx
+import pytest
+from PIL import Image, ImageChops, ImageStat
+
+from jarvis_pytest.devices import actions as A
+from jarvis_pytest.infra.cleanup import cleanup
+from jarvis_pytest.infra.containers import wait_until_ready
+
+pytestmark = pytest.mark.containers
+RUN_ID = f"test-windows-{uuid.uuid4().hex[:8]}"
+LABEL = {"label": f"org.jarvis.run={RUN_ID}"}
+TEXT = "Grüße <b>{x}</b> 東京"
+DOCS = r"C:\Users\user\Documents"
+
+
+@dataclass
+class Booted:
+    """The Windows device of a booted task environment."""
+
+    env: Any
+    container: Any
+    url: str
+    device: Any
+    ready_s: float
+
+
+@pytest.fixture(scope="module")
+def docker(device_images):
+    from jarvis_pytest.infra.engine import client
+
+    return client()
+
+
+@pytest.fixture(scope="module")
+def lifecycle(device_images):
+    from jarvis_pytest.infra.lifecycle import Lifecycle
+
+    life = Lifecycle(RUN_ID, "test")
+    yield life
+    cleanup(RUN_ID)
+
+
+def _gone(docker) -> None:
+    api = docker.api
+    assert api.containers(all=True, filters=LABEL) == []
+    assert api.networks(filters=LABEL) == []
+    assert (api.volumes(filters=LABEL) or {}).get("Volumes") in (None, [])
+
+
+@pytest.fixture(scope="module")
+def booted(docker, lifecycle):
+    """A Windows device and the transfer drive on one task network, as a task gets them; afterwards everything
+    (containers, network, the drive's volume) is removed, and checked gone."""
+    t0 = time.perf_counter()
+    env = lifecycle.boot(("windows",))
+    ready_s = time.perf_counter() - t0
+    try:
+        assert env.backends == {"windows": "windows (wine)"} and env.stand_ins == ("windows",)
+        yield Booted(env, env.containers["windows"], env.urls["windows"], env.devices["windows"], ready_s)
+    finally:
+        env.close()
+        _gone(docker)
+
+
+@pytest.fixture(scope="module")
+def device(booted):
+    return booted.device
+
+
+@pytest.fixture(autouse=True)
+def _screenshots_of_failures(tmp_path):
+    """Screenshots taken by failing waits land in the test's temp folder (named in the failure output)."""
+    SHOTS.clear()
+    yield
+    for i, (what, png) in enumerate(SHOTS):
+        path = tmp_path / f"failure-{i}.png"
+        path.write_bytes(png)
+        print(f"screenshot of '{what}': {path}")
+
+
+@pytest.fixture(scope="module")
+def http(booted):
+    with httpx.Client(base_url=booted.url, timeout=60) as c:
+        yield c
+
+
+SHOTS: list[tuple[str, bytes]] = []  # (name, PNG) saved by `wait_for` failures, for the report
+
+
+def wait_for(predicate, timeout: float = 20.0, what: str = "condition", url: str | None = None):
+    """`predicate()`'s first true value within `timeout` s; on failure the message lists the windows shown (and
+    the screenshot goes to the test's temp folder) when the device's `url` is given."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(0.05)
+    seen = ""
+    if url is not None:
+        with httpx.Client(base_url=url, timeout=30) as c:
+            seen = f"; windows: {[(w['title'], w['class']) for w in windows(c)]}"
+            SHOTS.append((what, c.get("/screenshot").content))
+    raise AssertionError(f"{what} not met within {timeout} s{seen}")
+
+
+def screen(device) -> Image.Image:
+    return Image.open(io.BytesIO(device.screenshot())).convert("RGB")
+
+
+def windows(http) -> list[dict]:
+    return http.get("/windows").json()["windows"]
+
+
+def window(http, title_part: str, timeout: float = 20) -> dict:
+    return wait_for(lambda: next((w for w in windows(http) if title_part in w["title"]), None), timeout,
+                    f"a window titled *{title_part}*", str(http.base_url))
+
+
+def find(node: dict, pred) -> dict | None:
+    if pred(node):
+        return node
+    for child in node.get("children", []):
+        hit = find(child, pred)
+        if hit:
+            return hit
+    return None
+
+
+def centre(box) -> tuple[int, int]:
+    x, y, w, h = box
+    return x + w // 2, y + h // 2
+
+
+def click(device, box, button: str = "left") -> None:
+    """Click the centre of a box [x, y, w, h]."""
+    x, y = centre(box)
+    assert device.act(A.Click(x=x, y=y, button=button)).ok
+
+
+def clipboard(http) -> str:
+    return http.get("/clipboard").json()["text"]
+
+
+@pytest.fixture
+def notepad(device, http):
+    """A fresh Notepad, in front and focused; every Notepad is ended after the test."""
+    assert device.launch("notepad")
+    win = window(http, "Notepad")
+    wait_for(lambda: next(w for w in windows(http) if w["id"] == win["id"])["focused"], what="Notepad focused")
+    yield win
+    device.run("taskkill /f /im notepad.exe")
+    wait_for(lambda: not any("Notepad" in w["title"] for w in windows(http)), what="Notepad gone")
+
+
+def edit_box(device) -> list[int]:
+    """The box of Notepad's text area (its Edit control), from the accessibility tree."""
+    tree = device.a11y_tree()["tree"]
+    frame = find(tree, lambda n: n.get("class") == "Notepad")
+    return find(frame, lambda n: n.get("class") == "Edit")["box"]
+
+
+# -- readiness and observation ----------------------------------------------------------------------------------
+
+def test_ready_means_the_shell_desktop_with_its_taskbar(booted, device):
+    print(f"create → ready: {booted.ready_s:.2f} s")
+    health = device.health()
+    assert health.desktop
+    assert "Microsoft Windows 10.0." in device.run("ver").stdout  # Wine set to report Windows 10
+    tree = device.a11y_tree()["tree"]
+    assert tree["role"] == "desktop frame" and find(tree, lambda n: n.get("class") == "Shell_TrayWnd")
+
+
+def strict_pixels(png: bytes) -> bytes:
+    """The filtered rows of a PNG, its chunk CRCs and zlib stream (Adler-32 included) checked."""
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    pos, idat = 8, b""
+    while pos < len(png):
+        n = int.from_bytes(png[pos:pos + 4], "big")
+        kind, data = png[pos + 4:pos + 8], png[pos + 8:pos + 8 + n]
+        assert zlib.crc32(kind + data) == int.from_bytes(png[pos + 8 + n:pos + 12 + n], "big")
+        idat += data if kind == b"IDAT" else b""
+        pos += 12 + n
+    return zlib.decompress(idat)
+
+
+def test_screenshot_is_the_desktop_png_and_bmp(device, http):
+    for x in (300, 1500):  # the second screenshot re-encodes only the bands the cursor crossed
+        device.act(A.MoveTo(x=x, y=500))
+        png = device.screenshot()
+        img = Image.open(io.BytesIO(png))
+        assert img.size == (1920, 1080) == device.screen_size()
+        assert len(strict_pixels(png)) == 1080 * (1920 * 3 + 1)
+        assert max(ImageStat.Stat(img.convert("L")).stddev) > 3, "the screenshot is blank"
+        bmp = Image.open(io.BytesIO(http.get("/screenshot", params={"format": "bmp"}).content)).convert("RGB")
+        assert bmp.tobytes() == img.convert("RGB").tobytes()
+    assert http.get("/screenshot", params={"format": "gif"}).status_code == 400
+
+
+def test_the_cursor_is_drawn_where_the_pointer_is(device):
+    device.act(A.MoveTo(x=900, y=500))
+    near = screen(device).crop((895, 495, 920, 525))
+    device.act(A.MoveTo(x=100, y=900))
+    assert near.tobytes() != screen(device).crop((895, 495, 920, 525)).tobytes()
+
+
+# -- actions, checked by their effect in real programs -----------------------------------------------------------
+
+def save_as(device, http, path: str, utf8: bool) -> None:
+    """Ctrl+S, then in Notepad's Save As dialog: the encoding (UTF-8 or left at ANSI), the path, Enter."""
+    assert device.act(A.Hotkey(keys=["ctrl", "s"])).ok
+    window(http, "Save As")
+    tree = wait_for(lambda: (t := device.a11y_tree()["tree"]) and find(t, lambda n: n["name"] == "Save As") and t,
+                    what="the Save As dialog in the accessibility tree")
+    dialog = find(tree, lambda n: n["role"] == "dialog" and n["name"] == "Save As")
+    save = find(dialog, lambda n: n["role"] == "push button" and n["name"] == "Save")
+    assert save and save.get("label") == "&Save" and "enabled" in save["states"] and save["box"][2] > 20
+    if utf8:
+        encoding = find(dialog, lambda n: n["role"] == "combo box" and n.get("text", "").startswith("ANSI"))
+        click(device, encoding["box"])
+        wait_for(lambda: any(w["class"] == "ComboLBox" for w in windows(http)), 10, "the encoding list open")
+        device.act(A.Hotkey(keys=["end"]))  # the last choice: Unicode (UTF-8)
+        device.act(A.Hotkey(keys=["enter"]))
+        wait_for(lambda: find(device.a11y_tree()["tree"], lambda n: n.get("text") == "Unicode (UTF-8)"),
+                 what="UTF-8 chosen")
+    name = find(dialog, lambda n: n.get("class") == "Edit" and n.get("text") == "*.txt")
+    click(device, name["box"])
+    device.act(A.Hotkey(keys=["ctrl", "a"]))
+    assert device.act(A.Typing(text=path + "\n")).ok
+
+
+def test_typing_is_exact_and_notepad_saves_it_through_its_save_as_dialog(device, http, notepad):
+    path = DOCS + r"\typed.txt"
+    device.run(f'del /q "{path}"')
+    assert device.act(A.Typing(text=TEXT)).ok
+    wait_for(lambda: find(device.a11y_tree()["tree"], lambda n: n.get("text") == TEXT), what="the text typed")
+    save_as(device, http, path, utf8=True)
+    window(http, "typed.txt - Notepad")
+    # Wine's Notepad writes UTF-8 with a byte order mark
+    data = wait_for(lambda: http.get("/files", params={"path": path}).content, what="the saved file")
+    assert data == b"\xef\xbb\xbf" + TEXT.encode("utf-8")
+
+
+def test_a_click_opens_a_menu_and_a_right_click_the_context_menu(device, http, notepad):
+    x, y = notepad["box"][:2]
+    edit = edit_box(device)
+    assert device.act(A.Click(x=x + 20, y=edit[1] - 11)).ok  # "File" in the menu bar
+    wait_for(lambda: any(w["class"] == "#32768" for w in windows(http)), 10, "the File menu open")
+    device.act(A.Hotkey(keys=["esc"]))
+    device.act(A.Hotkey(keys=["esc"]))
+    wait_for(lambda: not any(w["class"] == "#32768" for w in windows(http)), 10, "the menu closed")
+    x, y = centre(edit)
+    assert device.act(A.RightClick(x=x, y=y)).ok
+    menu = wait_for(lambda: next((w for w in windows(http) if w["class"] == "#32768"), None), 10, "a context menu")
+    assert find(device.a11y_tree()["tree"], lambda n: n["role"] == "menu" and n.get("class") == "#32768")
+    assert menu["box"][2] > 50
+    device.act(A.Hotkey(keys=["esc"]))
+
+
+def test_drag_swipe_and_double_click_move_and_maximise_a_window(device, http, notepad):
+    x, y, w, h = notepad["box"]
+    assert device.act(A.DragTo(start_x=x + 300, start_y=y + 10, x=x + 500, y=y + 160)).ok
+    wait_for(lambda: window(http, "Notepad")["box"] == [x + 200, y + 150, w, h], what="the window dragged")
+    assert device.act(A.Swipe(x=x + 500, y=y + 160, dx=-100, dy=-50, duration=200)).ok
+    wait_for(lambda: window(http, "Notepad")["box"] == [x + 100, y + 100, w, h], what="the window swiped")
+    assert device.act(A.DoubleClick(x=x + 400, y=y + 110)).ok  # on the title bar: maximise
+    wait_for(lambda: window(http, "Notepad")["box"][2] >= 1920, what="the window maximised")
+
+
+def test_scroll_moves_the_text_and_back(device, http, notepad):
+    # lines of different lengths: text moved by a few lines changes many pixels
+    device.act(A.Typing(text="\n".join(f"{i:02d} " + "#" * (i * 7 % 40) for i in range(60))))
+    device.act(A.Hotkey(keys=["ctrl", "home"]))
+    wait_for(lambda: find(device.a11y_tree()["tree"], lambda n: n["role"] == "status bar"
+                          and n["name"].replace(" ", "") == "Ln1,Col1"), what="the caret at the top")
+    area = edit_box(device)
+    box = (area[0] + 5, area[1] + 5, area[0] + 300, area[1] + 300)
+    top = screen(device).crop(box)
+    x, y = centre(area)
+    assert device.act(A.Scroll(dy=5, x=x, y=y)).ok
+
+    def changed(img) -> int:  # pixels that differ from the top of the text
+        return sum(ImageChops.difference(img, top).convert("L").point(lambda p: 255 if p > 40 else 0)
+                   .histogram()[255:])
+
+    wait_for(lambda: changed(screen(device).crop(box)) > 2000, 10, "the text scrolled down")
+    assert device.act(A.Scroll(dy=-5)).ok  # where the pointer is
+    wait_for(lambda: changed(screen(device).crop(box)) < 200, 10, "the text scrolled back (the caret may blink)")
+
+
+def test_keys_hotkeys_and_the_clipboard_of_a_program(device, http, notepad):
+    assert device.act(A.KeyDown(key="shift")).ok
+    assert device.act(A.Hotkey(keys=["b"])).ok  # with Shift held: "B"
+    assert device.act(A.KeyUp(key="shift")).ok
+    assert device.act(A.Hotkey(keys=["shift", "c"])).ok
+    assert device.act(A.KeyDown(key="ü")).ok and device.act(A.KeyUp(key="ü")).ok  # not on the layout: Unicode
+    assert device.act(A.Typing(text="d\te")).ok
+    assert device.act(A.Hotkey(keys=["ctrl", "a"])).ok and device.act(A.Hotkey(keys=["ctrl", "c"])).ok
+    wait_for(lambda: clipboard(http) == "BCüd\te", 10, "the text copied")
+
+
+def test_pyautogui_script(device, http, notepad):
+    script = ("import pyautogui\npyautogui.write('xyz <{}>')\npyautogui.hotkey('ctrl', 'a')\n"
+              "pyautogui.hotkey('ctrl', 'c')\nassert pyautogui.size() == (1920, 1080)\n")
+    assert device.act(A.Pyautogui(script=script)).ok
+    wait_for(lambda: clipboard(http) == "xyz <{}>", 10, "the script's text copied")
+    bad = device.act(A.Pyautogui(script="pyautogui.nosuchcall()"))
+    assert not bad.ok and "AttributeError" in bad.error and device.health().desktop
+
+
+def test_wait_done_fail_and_mouse_down_up(device):
+    t0 = time.monotonic()
+    assert device.act(A.Wait(seconds=0.3)).ok and time.monotonic() - t0 >= 0.3
+    assert device.act(A.Done()).ok and device.act(A.Fail()).ok
+    assert device.act(A.MouseDown(button="right")).ok and device.act(A.MouseUp(button="right")).ok
+    assert device.act(A.LongPress(x=1000, y=500, duration=100)).ok
+    device.act(A.Hotkey(keys=["esc"]))
+
+
+# -- files, clipboard, commands, programs ----------------------------------------------------------------------
+
+def test_files_round_trip(device, http):
+    data = bytes(range(256)) * 1000
+    path = r"C:\Users\user\Downloads\new folder\sub\blob.bin"
+    device.upload(path, data)
+    assert device.download(path.replace("\\", "/")) == data
+    assert http.get("/exists", params={"path": path}).json() == {"exists": True, "kind": "file"}
+    assert http.get("/exists", params={"path": r"C:\Users\user\Downloads"}).json() == {"exists": True, "kind": "dir"}
+    assert http.get("/exists", params={"path": r"C:\nowhere"}).json() == {"exists": False, "kind": None}
+    assert http.get("/files", params={"path": r"C:\no\such.txt"}).status_code == 404
+    assert http.get("/files", params={"path": r"C:\Users"}).status_code == 403
+    assert device.run(f'type "{path}" >nul && echo found').stdout.strip() == "found"
+
+
+def test_clipboard_round_trip(http):
+    text = "Grüße 東京 😀 <tag>\r\nzweite Zeile"
+    assert http.put("/clipboard", json={"text": text}).json() == {"ok": True}
+    assert clipboard(http) == text
+    assert http.put("/clipboard", json={"txt": "x"}).status_code == 400
+
+
+def test_run_command(device, http):
+    r = device.run("echo out& echo err 1>&2& exit /b 3")
+    assert (r.returncode, r.stdout, r.stderr) == (3, "out\r\n", "err \r\n")
+    assert device.run("echo ünï ^<^>{}").stdout == "ünï <>{}\r\n"  # cmd writes the ANSI code page
+    assert device.run("echo %USERPROFILE%").stdout.strip().lower() == r"c:\users\user"
+    assert device.run("cd", user="root").returncode == 0
+    assert http.post("/run", json={"command": "cd", "user": "bob"}).status_code == 400
+
+
+def test_a_command_that_times_out_is_killed_with_its_children(device, booted):
+    t0 = time.monotonic()
+    r = device.run("ping -n 60 127.0.0.1 >nul & echo never", timeout=1)
+    assert r.returncode == 124 and "never" not in r.stdout and "timed out" in r.stderr
+    assert time.monotonic() - t0 < 6
+    ps = lambda: booted.container.exec_run(["ps", "-eo", "args"]).output.decode()  # noqa: E731
+    wait_for(lambda: "ping" not in ps().lower(), 5, "ping killed with its job")
+
+
+def test_launch_programs_and_the_window_list(device, http):
+    try:
+        t0 = time.monotonic()
+        assert device.launch("wordpad", window_wait=20)
+        assert time.monotonic() - t0 < 20
+        pad = window(http, "Wordpad", 2)
+        assert pad["class"] == "WORDPADTOP" and pad["box"][2] > 100
+        assert device.launch("regedit")
+        assert device.launch("cmd")  # a console program gets a console window
+        assert window(http, "cmd.exe", 2)["class"] == "WineConsoleClass"
+        assert device.act(A.Typing(text="echo typed in the console> %TEMP%\\console.txt\n")).ok
+        wait_for(lambda: device.run(r"type %TEMP%\console.txt").stdout == "typed in the console\r\n", 10,
+                 "the command typed into the console run")
+        tops = windows(http)
+        assert [w["class"] for w in tops if w["focused"]] == ["WineConsoleClass"]
+        assert {"Registry Editor", "Document - Wine Wordpad"} <= {w["title"] for w in tops}
+        with pytest.raises(Exception, match="no application 'nosuchapp'"):
+            device.launch("nosuchapp")
+        t0 = time.monotonic()
+        sleeper = r"C:\jarvis\python\pythonw.exe"  # a program without a window
+        assert device.launch(sleeper, "-c", "import time; time.sleep(5)", window_wait=1.0) is False
+        assert 1.0 <= time.monotonic() - t0 < 10
+    finally:
+        device.run("taskkill /f /im wordpad.exe & taskkill /f /im regedit.exe & taskkill /f /im cmd.exe")
+
+
+def test_open_a_file_with_its_program(device, http):
+    path = DOCS + r"\open me.txt"
+    device.upload(path, "opened".encode())
+    try:
+        r = http.post("/open", json={"path": path, "window_wait": 20})
+        assert r.json() == {"ok": True, "window": True}
+        assert window(http, "open me.txt - Notepad", 2)
+        assert http.post("/open", json={"path": DOCS + r"\missing.txt"}).status_code == 404
+        assert http.post("/open", json={"path": "relative.txt"}).status_code == 400
+    finally:
+        device.run("taskkill /f /im notepad.exe")
+
+
+# -- accessibility, bad input, concurrency ---------------------------------------------------------------------
+
+def test_accessibility_tree_limits(booted, device):
+    small = device.a11y_tree(max_nodes=2)
+    assert small["nodes"] == 2 and small["truncated"]
+    for params in ({"max_nodes": 0}, {"timeout": "soon"}, {"max_depth": -1}, {"timeout": 1000}):
+        resp = httpx.get(f"{booted.url}/a11y", params=params)
+        assert resp.status_code == 400 and "max_nodes" in resp.json()["error"]
+
+
+@pytest.mark.parametrize("body, needle", [
+    ({"type": "CLICK", "x": 5000, "y": 10}, "off the 1920x1080 screen"),
+    ({"type": "CLIK", "x": 1, "y": 1}, "invalid request"),
+    ({"type": "HOTKEY", "keys": ["ctrl", "nosuchkey"]}, "unknown key name"),
+    ({"type": "SYSTEM_BUTTON", "button": "home"}, "not supported on windows"),
+    ({"type": "TYPING"}, "TYPING.text"),
+    ({"type": "DRAG_TO", "x": -1, "y": 5}, "off the"),
+    ({"type": "CLICK", "clicks": 9}, "CLICK.clicks"),
+    ({"type": "MOVE_TO", "x": 1, "y": 1, "z": 2}, "MOVE_TO.z"),
+])
+def test_bad_actions_are_4xx_and_the_server_stays_up(booted, device, body, needle):
+    url = booted.url
+    resp = httpx.post(f"{url}/action", json=body)
+    assert 400 <= resp.status_code < 500 and needle in resp.json()["error"]
+    assert httpx.post(f"{url}/action", content=b"{not json").status_code == 400
+    assert httpx.get(f"{url}/files", params={"path": "relative"}).status_code == 400
+    assert httpx.post(f"{url}/run", json={"command": ""}).status_code == 400
+    assert httpx.post(f"{url}/launch", json={"app": "notepad", "window_wait": -1}).status_code == 400
+    assert httpx.get(f"{url}/nowhere").status_code == 404
+    assert httpx.post(f"{url}/windows").status_code == 405
+    with httpx.Client(base_url=url) as keep_alive:  # a refused upload does not poison the connection
+        assert keep_alive.put("/files", params={"path": "x"}, content=b"GET / HTTP/1.1\r\n\r\n").status_code == 400
+        assert keep_alive.get("/health").json()["desktop"]
+    outcome = device.act(A.SystemButton(button="home"))
+    assert not outcome.ok and "SYSTEM_BUTTON" in outcome.error
+
+
+def test_concurrent_requests(device):
+    errors: list[BaseException] = []
+
+    def worker(i: int) -> None:
+        try:
+            for j in range(4):
+                assert device.act(A.MoveTo(x=100 + i * 10 + j, y=100)).ok
+                assert len(device.screenshot()) > 1000
+        except BaseException as exc:  # noqa: BLE001 - reported below
+            errors.append(exc)
+
+    threads = [threading.Thread(target=worker, args=(i,)) for i in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors and device.health().desktop
+
+
+# -- the transfer drive as S: --------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def drive(booted):
+    client = booted.env.transfer
+    client.wait_ready(30)
+    yield client
+    client.close()
+
+
+def test_the_transfer_drive_is_drive_s(device, http, drive, notepad):
+    # the server's file API, a command and a program's Save As dialog all write to S:, the drive lists them
+    device.upload(r"S:\data\from-api.bin", bytes(range(256)))
+    assert device.run(r"echo from cmd> S:\data\from-cmd.txt").returncode == 0
+    assert device.act(A.Typing(text="saved by Notepad")).ok
+    save_as(device, http, r"S:\data\from-notepad.txt", utf8=False)
+    window(http, "from-notepad.txt - Notepad")
+    wait_for(lambda: "from-notepad.txt" in drive.list("/data")[1], 10, "the drive lists Notepad's file")
+    assert {"from-api.bin", "from-cmd.txt", "from-notepad.txt"} <= set(drive.list("/data")[1])
+    assert drive.download("/data/from-api.bin") == bytes(range(256))
+    assert drive.download("/data/from-cmd.txt") == b"from cmd\r\n"
+    assert drive.download("/data/from-notepad.txt") == b"saved by Notepad"
+    # what arrives through the drive's own API shows on S: at once
+    drive.upload("/data/to-windows.txt", "für Windows".encode())
+    assert device.download(r"S:\data\to-windows.txt") == "für Windows".encode()
+    assert http.get("/exists", params={"path": "S:\\"}).json()["kind"] == "dir"
+
+
+def test_a_device_without_the_drive_has_no_s_and_boots_cold(docker):
+    """Started alone (no drive volume), the image boots cold and shows no S: at all."""
+    from jarvis_pytest.devices.backend import backend_for
+    from jarvis_pytest.infra.containers import BootRequest, labels
+
+    net = docker.networks.create(f"{RUN_ID}-bare", labels=labels(RUN_ID, "0", "network"))
+    backend = backend_for("windows", "wine")
+    request = BootRequest(docker=docker, name=f"{RUN_ID}-windows-2", network=net,
+                          labels=labels(RUN_ID, "0", "device", "windows"), memory=backend.memory, cpus=None,
+                          ready_timeout=60)
+    t0 = time.perf_counter()
+    try:
+        b = backend.boot(request)
+        ready_s = time.perf_counter() - t0
+        print(f"create → ready: {ready_s:.2f} s")
+        assert ready_s < 30
+        assert httpx.get(f"{b.url}/exists", params={"path": "S:\\"}).json() == {"exists": False, "kind": None}
+        assert httpx.put(f"{b.url}/files", params={"path": r"S:\x.txt"}, content=b"x").status_code in (403, 404)
+    finally:
+        from jarvis_pytest.infra.containers import remove_all
+
+        assert not remove_all(request.started, net)
+
+
+def test_killing_the_desktop_restarts_the_wine_session(booted, device, http):
+    """`taskkill /im explorer.exe` ends Wine's desktop, which Wine cannot draw again: the device's watchdog starts
+    the Wine session anew (programs that ran are gone) and the device is ready again within seconds."""
+    from jarvis_pytest.devices.desktop import wait_ready
+
+    try:
+        device.run("taskkill /f /im explorer.exe", timeout=5)
+    except Exception:  # the session restart may take the server down with the command
+        pass
+    logs = lambda: booted.container.logs().decode("utf-8", "replace")  # noqa: E731
+    wait_for(lambda: "restarting the Wine session" in logs(), 10, "the watchdog restarting Wine")
+    wait_until_ready(booted.container, lambda seconds: wait_ready(booted.url, seconds), 60, "windows device")
+    assert device.launch("notepad")
+    assert window(http, "Notepad")
+    device.run("taskkill /f /im notepad.exe")
+
+
+def test_transfer_from_windows_to_ubuntu_through_the_drive(docker, lifecycle):
+    """The built-in transfer task, Windows → Ubuntu, on one task network: its oracle copies the file to `S:` on
+    Windows and fetches it with curl on Ubuntu; its evaluators pass, the drive's own API listed the file, and
+    the bytes that arrive are the bytes that left."""
+    import hashlib
+
+    from jarvis_pytest.agents.builtin import OracleAgent
+    from jarvis_pytest.agents.protocol import TaskContext
+    from jarvis_pytest.plugin.evaluation import evaluate_subtasks
+    from jarvis_pytest.plugin.setup_steps import run_setup
+    from jarvis_pytest.tasks.instances import materialise
+    from jarvis_pytest.tasks.model import BoundSlot
+    from jarvis_pytest.tasks.transfer import transfer_template
+
+    payload = "Grüße aus Windows ✓\r\n".encode() + uuid.uuid4().bytes
+    source = r"C:\Users\user\Documents\handover.bin"
+    sub = materialise(transfer_template("windows", "ubuntu"), {},
+                      fed={"transferred_file": BoundSlot(type="file", value=source)})
+    env = lifecycle.boot(("ubuntu", "windows"))
+    try:
+        env.devices["windows"].upload(source, payload)
+        run_setup([sub], env.devices)
+        before = evaluate_subtasks([sub], env.devices, env.transfer)
+        assert not any(e.passed for v in before for e in v.evaluators), before
+        oracle = OracleAgent()
+        oracle.reset(TaskContext("t", sub.instruction, ("ubuntu", "windows"), subtasks=(sub,)))
+        oracle.attach_devices(env.devices)
+        steps = [oracle.act({}, []) for _ in range(len(sub.solution) + 1)]
+        assert [s.action.type for s in steps] == ["WAIT"] * len(sub.solution) + ["DONE"], steps[-1].reasoning
+        assert [s.platform for s in steps[:2]] == ["windows", "ubuntu"]
+        (verdict,) = evaluate_subtasks([sub], env.devices, env.transfer)
+        assert verdict.passed, verdict.evaluators
+        received = env.devices["ubuntu"].download(sub.output["received_file"].value)
+        assert hashlib.sha256(received).hexdigest() == hashlib.sha256(payload).hexdigest()
+        assert env.transfer.download("/data/handover.bin") == payload
+    finally:
+        env.close()
+    names = {c.name for c in env.containers.values()}
+    assert not [c for c in docker.api.containers(all=True, filters=LABEL) if c["Names"][0].lstrip("/") in names]
+    assert not docker.api.networks(filters={"name": env.network.name})
+    assert not [v for v in (docker.api.volumes(filters=LABEL) or {}).get("Volumes") or []
+                if v["Name"] in {x.name for x in env.volumes}]
