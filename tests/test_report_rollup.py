@@ -191,7 +191,7 @@ def test_terminal_is_fixed_width():
     lines = render_terminal(rollup(MIXED)).splitlines()
     assert "60.0 (3/5)" in lines[1] and "62.5 (11/17)" in lines[4]
     assert len({len(line) for line in lines[:5]}) == 1  # right-aligned columns line up
-    assert "errors (not in rates): atomic 1, md 1; timeouts: 0; unfinished: 2" in lines[-1]
+    assert "errors (not in rates): atomic 1, md 1; timeouts: 0; skipped (no device here): 0; unfinished: 2" in lines[-1]
 
 
 def write_run(run_dir, results):
@@ -253,3 +253,44 @@ def test_invariants(items, rnd):
     shuffled = results[:]
     rnd.shuffle(shuffled)
     assert summary_json(rollup(shuffled, n_boot=100)) == summary_json(s)
+
+
+def test_failure_modes_are_classified_from_verdicts_graph_and_trajectory():
+    from jarvis_pytest.report.failure_modes import classify
+
+    def v(i, ok, platform="ubuntu", template="t"):
+        return SubtaskVerdict(index=i, template=template, platform=platform, passed=ok)
+
+    both = {"ubuntu", "windows"}
+    assert classify([v(0, T), v(1, T)], [(0, 1)], "done", both) is None
+    assert classify([v(0, T), v(1, F)], [(0, 1)], "max_steps", both) == "step limit"
+    assert classify([v(0, F)], [], "fail", both) == "gave up"
+    transfer = [v(0, T, "windows"), v(1, F, "ubuntu", "transfer-windows-to-ubuntu"), v(2, F)]
+    assert classify(transfer, [(0, 1), (1, 2)], "done", both) == "transfer failed"
+    # the upstream passed, the downstream fed by it failed: the output was not carried on
+    assert classify([v(0, T, "windows"), v(1, T, template="transfer-windows-to-ubuntu"), v(2, F)],
+                    [(0, 1), (1, 2)], "done", both) == "context lost"
+    # independent subtasks, DONE with the Windows one never touched
+    assert classify([v(0, T), v(1, F, "windows")], [], "done", {"ubuntu"}) == "done early"
+    assert classify([v(0, T), v(1, F, "windows")], [], "done", both) == "subtask failed"
+    # a failed upstream makes its downstream's failure no context loss
+    assert classify([v(0, F), v(1, F)], [(0, 1)], "done", both) == "subtask failed"
+
+
+def test_failure_modes_devices_and_stand_ins_in_the_summary():
+    a = task("md-a", "md", [T, F], platforms=("ubuntu", "windows"))
+    a.failure_mode, a.stand_ins, a.backends = "context lost", ["windows"], {"windows": "windows (wine)"}
+    b = task("mi-b", "mi", [T, T], platforms=("ubuntu", "windows"))
+    b.stand_ins, b.backends = ["windows"], {"windows": "windows (wine)"}
+    c = task("sw-c", "sw", [F, F])
+    c.failure_mode = "subtask failed"
+    w = task("a-win", "atomic", [T], platforms=("windows",))
+    w.stand_ins, w.backends = ["windows"], {"windows": "windows (wine)"}
+    s = rollup([a, b, c, w])
+    assert s.failure_modes == {"md": {"context lost": 1}, "sw": {"subtask failed": 1}}
+    assert [(d.devices, d.k, d.n) for d in s.by_devices] == [(1, 0, 1), (2, 1, 2)]
+    assert s.stand_ins == {"windows": ["windows (wine)"]}
+    md = render_markdown(s)
+    assert "Windows ran on windows (wine)" in md and "| Windows* |" in md.replace("Windows*", "Windows*")
+    assert "Table 4. Success against the number of devices" in md and "Table 5. Failure modes" in md
+    assert "| context lost | 0 | 1 | 1 |" in md

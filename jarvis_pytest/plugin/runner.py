@@ -18,6 +18,7 @@ from jarvis_pytest.plugin.evaluation import capture_baselines, evaluate_subtasks
 from jarvis_pytest.plugin.idle import idle_observation
 from jarvis_pytest.plugin.loop import LoopLimits, LoopOutcome, run_loop
 from jarvis_pytest.plugin.setup_steps import run_setup
+from jarvis_pytest.report.failure_modes import classify
 from jarvis_pytest.results.model import TaskResult
 from jarvis_pytest.results.writer import TaskRecorder
 from jarvis_pytest.tasks.model import Task
@@ -73,7 +74,8 @@ def run_task(task: Task, ctx: RunContext) -> TaskResult:
     config = ctx.agent_config
     result = TaskResult(task_id=task.id, category=task.category, platforms=list(platforms),
                         instruction=task.instruction, status="running", agent=config,
-                        agent_key=agent_key(config, ctx.limits), egress=ctx.egress)
+                        agent_key=agent_key(config, ctx.limits), egress=ctx.egress,
+                        edges=[(e.from_[0], e.to[0]) for e in task.edges])
     recorder = TaskRecorder(ctx.run_dir, result)
     t_start = time.monotonic()
     env = None
@@ -84,6 +86,7 @@ def run_task(task: Task, ctx: RunContext) -> TaskResult:
             ctx.environments.prewarm(ctx.prewarm_next)
         result.image_ids = dict(env.image_ids)
         result.backends = dict(getattr(env, "backends", {}))
+        result.stand_ins = sorted(getattr(env, "stand_ins", ()))
         t_boot = time.monotonic()
         run_setup(subtasks, env.devices)
         baselines = capture_baselines(subtasks, env.devices)
@@ -111,6 +114,8 @@ def run_task(task: Task, ctx: RunContext) -> TaskResult:
             env.close()
             result.qc_negatives = run_negatives(subtasks, platforms, ctx.environments)
         result.status = "passed" if _passed(result) else "failed"
+        if result.status == "failed" and result.qc_initial is None:
+            result.failure_mode = classify(result.subtasks, result.edges, outcome.end_reason, recorder.acted_on)
         if outcome.end_reason == "timeout":  # the task's time limit, not the agent's verdict: counted apart
             result.status = "timeout"
         result.durations = {"boot": t_boot - t_start, "setup": t_setup - t_boot, "agent": outcome.agent_seconds,

@@ -92,6 +92,16 @@ class BySubtasks(BaseModel):
     ssr: float
 
 
+class ByDevices(BaseModel):
+    """Composed tasks on `devices` devices: `k` of `n` passed; `ssr` is the mean of per-task ratios."""
+
+    devices: int
+    n: int
+    k: int
+    tsr: float
+    ssr: float
+
+
 class Summary(BaseModel):
     """summary.json. Rates are fractions in [0, 1]; intervals are [lo, hi] or None when there is no task."""
 
@@ -106,6 +116,9 @@ class Summary(BaseModel):
     timeouts: dict[str, int] = Field(default_factory=dict)  # status "timeout", per category; excluded
     not_run: dict[str, int] = Field(default_factory=dict)  # planned (plan.json) but no result, per category
     skipped: dict[str, int] = Field(default_factory=dict)  # no device for them on this machine, per category
+    by_devices: list[ByDevices] = Field(default_factory=list)  # composed tasks by number of devices
+    failure_modes: dict[str, dict[str, int]] = Field(default_factory=dict)  # category → mode → failed tasks
+    stand_ins: dict[str, list[str]] = Field(default_factory=dict)  # platform → stand-in backends that ran it
     tasks: int = 0  # tasks counted in the rates
     warnings: list[str] = Field(default_factory=list)  # inconsistent or unexpected results
     seed: int = 0
@@ -165,6 +178,32 @@ def _curve(results: list[TaskResult]) -> list[BySubtasks]:
     return [BySubtasks(subtasks=size, n=len(ts), k=sum(t.success for t in ts),
                        tsr=sum(t.success for t in ts) / len(ts), ssr=math.fsum(t.ratio for t in ts) / len(ts))
             for size, ts in sorted(sizes.items())]
+
+
+def _by_devices(results: list[TaskResult]) -> list[ByDevices]:
+    sizes: dict[int, list[_Task]] = {}
+    for r in results:
+        sizes.setdefault(len(set(r.platforms)), []).append(_Task(r))
+    return [ByDevices(devices=size, n=len(ts), k=sum(t.success for t in ts),
+                      tsr=sum(t.success for t in ts) / len(ts), ssr=math.fsum(t.ratio for t in ts) / len(ts))
+            for size, ts in sorted(sizes.items())]
+
+
+def _failure_modes(done: dict[str, list[TaskResult]]) -> dict[str, dict[str, int]]:
+    out: dict[str, dict[str, int]] = {}
+    for cat, rs in done.items():
+        counts = Counter(r.failure_mode for r in rs if r.status == "failed" and r.failure_mode)
+        if counts:
+            out[cat] = dict(sorted(counts.items()))
+    return out
+
+
+def _stand_ins(results: list[TaskResult]) -> dict[str, list[str]]:
+    found: dict[str, set[str]] = {}
+    for r in results:
+        for p in r.stand_ins:
+            found.setdefault(p, set()).add(r.backends.get(p, p))
+    return {p: sorted(v) for p, v in sorted(found.items())}
 
 
 def _dedupe(results: Sequence[TaskResult], warnings: list[str]) -> list[TaskResult]:
@@ -250,6 +289,8 @@ def rollup(results: Sequence[TaskResult], *, seed: int = 0, n_boot: int = 2000,
         overall={"tsr": tsr("all", everything), "ssr": composed["overall"].ssr},
         by_subtasks=_curve(composed_all), by_subtasks_category={c: _curve(done[c]) for c in COMPOSED},
         errors=errors, unfinished=unfinished, timeouts=timeouts, not_run=not_run, skipped=skipped,
+        by_devices=_by_devices(composed_all), failure_modes=_failure_modes(done),
+        stand_ins=_stand_ins(everything),
         tasks=len(everything), warnings=sorted(warnings),
         seed=seed, n_boot=n_boot, level=LEVEL)
 
@@ -300,16 +341,28 @@ def _notes(s: Summary) -> list[str]:
     ]
 
 
+def _star(s: Summary, platform: str) -> str:
+    return "*" if platform in s.stand_ins else ""
+
+
+def _stand_in_note(s: Summary) -> str:
+    return "; ".join(f"{_LABEL.get(p, p)} ran on {', '.join(labels)}" for p, labels in s.stand_ins.items()) + "."
+
+
 def render_markdown(s: Summary) -> str:
     """summary.md: the paper's main table (atomic, multi), intervals, success against subtasks, errors."""
     name = s.agent or "agent"
     atomic, multi = _main_cells(s)
     out = [f"# JarvisGUI results{f' — {s.agent}' if s.agent else ''}", "",
            f"Tasks counted: {s.tasks}. Not counted: errors {sum(s.errors.values())}, timeouts "
-           f"{sum(s.timeouts.values())}, skipped for want of a device {sum(s.skipped.values())}, unfinished {sum(s.unfinished.values())}, never ran "
-           f"{sum(s.not_run.values())}.", "",
-           "## Table 1a. Atomic tasks: TSR (%)", ""]
-    out += _md_table(["Model", "Android", "Windows", "Ubuntu", "Overall"], [[name, *(c.text() for c in atomic)]])
+           f"{sum(s.timeouts.values())}, skipped for want of a device {sum(s.skipped.values())}, unfinished "
+           f"{sum(s.unfinished.values())}, never ran {sum(s.not_run.values())}.", ""]
+    if s.stand_ins:
+        out += [f"**Stand-in devices:** {_stand_in_note(s)} Cells marked * include results from a stand-in: "
+                "they are not comparable with results from the real platform.", ""]
+    out += ["## Table 1a. Atomic tasks: TSR (%)", ""]
+    out += _md_table(["Model", *(_LABEL[p] + _star(s, p) for p in PLATFORMS), "Overall"],
+                     [[name, *(c.text() for c in atomic)]])
     out += ["## Table 1b. Multi-tasks: TSR and SSR (%)", ""]
     out += _md_table(["Model", *(f"{_LABEL[c]} {m}" for c in (*COMPOSED, "overall") for m in ("TSR", "SSR"))],
                      [[name, *(c.text() for c in multi)]])
@@ -333,6 +386,19 @@ def render_markdown(s: Summary) -> str:
         out += _md_table(["Subtasks", "Tasks", "TSR", "SSR", *(f"{_LABEL[c]} TSR" for c in COMPOSED)],
                          [[str(b.subtasks), str(b.n), _pct_counts(b.tsr, b.k, b.n), _pct(b.ssr),
                            *(cat_cell(per_cat[c].get(b.subtasks)) for c in COMPOSED)] for b in s.by_subtasks])
+    if s.by_devices:
+        out += ["## Table 4. Success against the number of devices (composed tasks, %)", ""]
+        out += _md_table(["Devices", "Tasks", "TSR", "SSR"],
+                         [[str(b.devices), str(b.n), _pct_counts(b.tsr, b.k, b.n), _pct(b.ssr)] for b in s.by_devices])
+    if s.failure_modes:
+        from jarvis_pytest.report.failure_modes import MODES
+
+        out += ["## Table 5. Failure modes of failed tasks (counts; report/failure_modes.py)", ""]
+        cats = [c for c in CATEGORIES if c in s.failure_modes]
+        out += _md_table(["Mode", *(_LABEL[c] for c in cats), "Total"],
+                         [[m, *(str(s.failure_modes[c].get(m, 0)) for c in cats),
+                           str(sum(s.failure_modes[c].get(m, 0) for c in cats))] for m in MODES
+                          if any(s.failure_modes[c].get(m) for c in cats)])
     out += ["## Not counted", ""]
     out += _md_table(["", *(_LABEL[c] for c in CATEGORIES), "Total"],
                      [[label, *(str(d.get(c, 0)) for c in CATEGORIES), str(sum(d.values()))]

@@ -88,7 +88,10 @@ class TaskResult(BaseModel):
     end_reason: str = ""  # done | fail | max_steps | timeout | error
     error: str | None = None  # infrastructure error text when status == "error"; the reason when "skipped"
     egress: bool = False  # the devices could reach beyond their task network (--allow-egress)
-    backends: dict[str, str] = Field(default_factory=dict)  # platform → the backend that ran it, e.g. "wine"
+    backends: dict[str, str] = Field(default_factory=dict)  # platform → the backend that ran it: "windows (wine)"
+    stand_ins: list[str] = Field(default_factory=list)  # platforms that ran on a stand-in (Wine for Windows)
+    edges: list[tuple[int, int]] = Field(default_factory=list)  # (upstream, downstream) subtask indices
+    failure_mode: str | None = None  # why a failed task failed (report/failure_modes.py)
     durations: dict[str, float] = Field(default_factory=dict)  # boot, setup, agent, evaluate, total (seconds)
     usage: dict[str, int] = Field(default_factory=dict)
     image_ids: dict[str, str] = Field(default_factory=dict)

@@ -51,6 +51,7 @@ class TaskRecorder:
                     p.unlink()
         self.dir.mkdir(parents=True, exist_ok=True)
         self.result = result
+        self.acted_on: set[str] = set()  # platforms the agent sent at least one action to
         self.result.started = self.result.started or now_iso()
         self._traj = open(self.dir / "traj.jsonl", "a", encoding="utf-8")
         self.save_result()
@@ -66,6 +67,8 @@ class TaskRecorder:
     def step(self, record: StepRecord) -> None:
         self._traj.write(record.model_dump_json() + "\n")
         self._traj.flush()
+        if record.action is not None and record.platform:
+            self.acted_on.add(record.platform)
 
     def save_result(self) -> None:
         write_json_atomic(self.dir / "result.json", self.result.model_dump(mode="json"))

@@ -287,7 +287,7 @@ function renderPending(run) {
 }
 
 function renderTasks(runId, tasks, filter) {
-  const shown = tasks.filter((t) => !filter || [t.task_id, t.status, t.category, t.platforms.join(" "), t.end_reason].join(" ").toLowerCase().includes(filter));
+  const shown = tasks.filter((t) => !filter || [t.task_id, t.status, t.category, t.platforms.join(" "), t.end_reason, t.failure_mode || ""].join(" ").toLowerCase().includes(filter));
   if (!tasks.length) return h("p", { class: "muted" }, "No task has started yet.");
   return h("table", {},
     h("thead", {}, h("tr", {}, ["Task", "Category", "Platforms", "Status", "Subtasks", "Steps", "End", "Duration", "Problems"].map((c) => h("th", {}, c)))),
@@ -298,7 +298,7 @@ function renderTasks(runId, tasks, filter) {
       h("td", {}, badge(t.status)),
       h("td", { class: "num" }, t.subtasks_total ? `${t.subtasks_passed}/${t.subtasks_total}` : "–"),
       h("td", { class: "num" }, t.steps),
-      h("td", {}, t.end_reason || ""),
+      h("td", {}, t.end_reason || "", t.failure_mode ? h("div", { class: "muted", "data-testid": "failure-mode" }, t.failure_mode) : null),
       h("td", { class: "num" }, fmtSecs(t.duration)),
       h("td", { class: "num" }, t.problems.length ? h("span", { class: "badge error", title: t.problems.map((p) => p.message).join("\n") }, t.problems.length) : "")))));
 }
@@ -422,6 +422,9 @@ function renderTaskHead(runId, t) {
       h("span", {}, "platforms ", h("b", {}, t.platforms.join(", ") || "–")),
       h("span", {}, "steps ", h("b", {}, t.steps)),
       h("span", {}, "end ", h("b", {}, t.end_reason || "–")),
+      t.failure_mode ? h("span", {}, "failure mode ", h("b", { "data-testid": "task-failure-mode" }, t.failure_mode)) : null,
+      Object.keys(t.backends || {}).length ? h("span", {}, "devices ", h("b", {}, Object.values(t.backends).join(", ")),
+        (t.stand_ins || []).length ? h("span", { class: "muted" }, " (stand-in)") : null) : null,
       h("span", {}, "duration ", h("b", {}, fmtSecs(t.durations && t.durations.total))),
       h("span", {}, "agent ", h("b", {}, (t.agent && t.agent.name) || "–"))),
     t.instruction ? h("div", { class: "card" }, h("b", {}, "Instruction"), h("pre", { "data-testid": "instruction" }, t.instruction)) : null,
