@@ -15,6 +15,7 @@ from jarvis_pytest.infra.transfer_server import (TRANSFER_ALIAS, TRANSFER_FOLDER
                                                  TRANSFER_USER)
 from jarvis_pytest.errors import ConfigError, InfrastructureError
 from jarvis_pytest.plugin.evaluation import capture_baselines, evaluate_subtasks
+from jarvis_pytest.plugin import idle
 from jarvis_pytest.plugin.idle import idle_observation
 from jarvis_pytest.plugin.loop import LoopLimits, LoopOutcome, run_loop
 from jarvis_pytest.plugin.setup_steps import run_setup
@@ -85,6 +86,9 @@ def run_task(task: Task, ctx: RunContext) -> TaskResult:
         if ctx.prewarm_next:  # only now: the devices booting ahead are the next task's, never this one's
             ctx.environments.prewarm(ctx.prewarm_next)
         result.image_ids = dict(env.image_ids)
+        for platform, device in env.devices.items():  # the initial screen, for tasks that do not use the platform
+            if platform in env.image_ids and not idle.known(platform, env.image_ids[platform]):
+                idle.remember(platform, env.image_ids[platform], device.observe().screenshot_png)
         result.backends = dict(getattr(env, "backends", {}))
         result.stand_ins = sorted(getattr(env, "stand_ins", ()))
         t_boot = time.monotonic()
