@@ -104,15 +104,15 @@ def run_task(task: Task, ctx: RunContext) -> TaskResult:
                                     transfer=transfer, subtasks=tuple(subtasks)))
         if hasattr(ctx.agent, "attach_devices"):
             ctx.agent.attach_devices(env.devices)
-        idle = {p: idle_observation(p) for p in PLATFORMS if p not in env.devices}
-        outcome = run_loop(ctx.agent, env.devices, idle, recorder, ctx.limits, progress)
+        unused = {p: idle_observation(p) for p in PLATFORMS if p not in env.devices}
+        outcome = run_loop(ctx.agent, env.devices, unused, recorder, ctx.limits, progress)
         for platform, device in sorted(env.devices.items()):
             recorder.screenshot(outcome.steps, platform, device.observe().screenshot_png)
         t_loop = time.monotonic()
         result.steps, result.end_reason, result.usage = outcome.steps, outcome.end_reason, outcome.usage
         result.subtasks = evaluate_subtasks(subtasks, env.devices, env.transfer, baselines)
         t_eval = time.monotonic()
-        if ctx.qc:
+        if ctx.qc and task.category == "atomic":  # negatives belong to templates; composed tasks have none
             from jarvis_pytest.plugin.negatives import run_negatives
 
             env.close()

@@ -85,9 +85,12 @@ def render_table(rows: list[dict[str, str]]) -> str:
 
 def pytest_argv(args: argparse.Namespace, run_dir: Path) -> list[str]:
     """The benchmark run that performs the gate."""
-    argv = [sys.executable, "-m", "pytest", str(REPO_ROOT / "tasks" / "test_atomic.py"), "--qc",
+    module = "test_composed.py" if args.composed else "test_atomic.py"
+    argv = [sys.executable, "-m", "pytest", str(REPO_ROOT / "tasks" / module), "--qc",
             "-p", "no:cacheprovider", "-q", "--instances", str(args.instances), "--library", str(args.library),
             "--results-dir" if not args.resume else "--resume", str(run_dir)]
+    for dataset in args.dataset or []:
+        argv += ["--dataset", str(dataset)]
     if args.platform:
         argv += ["-m", args.platform]
     if args.k:
@@ -124,6 +127,10 @@ def register(sub: Any) -> None:
     p.add_argument("-k", default=None, metavar="EXPR", help="only tasks matching this pytest -k expression")
     p.add_argument("-n", default=None, metavar="N", help="parallel workers (pytest-xdist), e.g. 2 or auto")
     p.add_argument("--instances", type=int, default=2, help="seeded instances per template (default 2)")
+    p.add_argument("--composed", action="store_true", help="gate the composed tasks of the datasets instead: every "
+                   "subtask evaluator fails on the fresh devices, the whole task passes after the oracle")
+    p.add_argument("--dataset", action="append", type=Path, metavar="FILE",
+                   help="with --composed: these dataset files (default tasks/composed/*.json)")
     p.add_argument("--library", type=Path, default=REPO_ROOT / "tasks", help="template folder (default tasks/)")
     p.add_argument("--results-dir", default=None, help="where to write the gate's results (default reports/qc-<time>)")
     p.add_argument("--resume", default=None, metavar="RUN_DIR", help="continue an interrupted gate run")
