@@ -241,9 +241,9 @@ def grow(library: Library, rng: random.Random, size: int, *, platforms: set[str]
     return built
 
 
-def independent(library: Library, rng: random.Random, size: int) -> Built | None:
+def independent(library: Library, rng: random.Random, size: int, platforms: set[str] | None = None) -> Built | None:
     """The MI path: `size` instances of distinct templates on at least two platforms, no edges."""
-    pool = list(library.templates)
+    pool = [t for t in library.templates if platforms is None or t.platform in platforms]
     rng.shuffle(pool)
     if len({t.platform for t in pool}) < 2:
         return None
@@ -265,17 +265,20 @@ def independent(library: Library, rng: random.Random, size: int) -> Built | None
     return built
 
 
-def compose_task(library: Library, category: str, rng: random.Random, max_subtasks: int) -> Task | None:
-    """One composed task of `category` (sw, mi, md, or `dependent` = sw or md) or None if this draw failed."""
+def compose_task(library: Library, category: str, rng: random.Random, max_subtasks: int,
+                 platforms: tuple[str, ...] | None = None) -> Task | None:
+    """One composed task of `category` (sw, mi, md, or `dependent` = sw or md) or None if this draw failed;
+    `platforms` restricts it to those platforms (one for SW, a pair for MI and MD)."""
+    allowed = set(platforms) if platforms else None
     if category == "mi":
-        built = independent(library, rng, rng.randint(2, max_subtasks))
+        built = independent(library, rng, rng.randint(2, max_subtasks), allowed)
     elif category == "sw":
-        first = rng.choice(list(library.templates))
+        first = rng.choice([t for t in library.templates if allowed is None or t.platform in allowed])
         built = grow(library, rng, rng.randint(2, max_subtasks), platforms={first.platform}, start=first)
     elif category == "md":
         if max_subtasks < 3:
             return None
-        built = grow(library, rng, rng.randint(3, max_subtasks), want_cross=True)
+        built = grow(library, rng, rng.randint(3, max_subtasks), platforms=allowed, want_cross=True)
     else:
         built = grow(library, rng, rng.randint(2, max_subtasks))
     if built is None:
@@ -286,6 +289,19 @@ def compose_task(library: Library, category: str, rng: random.Random, max_subtas
     return Task(id=f"{got}-draft", category=got, devices=sorted({s.platform for s in built.subtasks}),
                 instruction=merged_instruction(built.subtasks, dependent=bool(built.edges)),
                 edges=built.edges, formatted_subtasks=built.subtasks)
+
+
+SPREAD_TRIES = 25  # attempts on one platform (pair) before the next one
+
+
+def platform_spread(library: Library) -> dict[str, list[tuple[str, ...]]]:
+    """Where each category's tasks go, in turn (the paper's mix): SW over every platform with templates, MI and
+    MD over every pair of them."""
+    from itertools import combinations
+
+    platforms = sorted({t.platform for t in library.templates})
+    pairs = list(combinations(platforms, 2))
+    return {"sw": [(p,) for p in platforms], "mi": pairs, "md": pairs}
 
 
 def category_plan(seed: int, count: int, balanced: bool, category: str | None = None) -> list[str]:
@@ -325,10 +341,18 @@ def compose(library: Library, *, seed: int, count: int, max_subtasks: int, balan
                           fix="add templates under <library>/<platform>/*.json or pass --library DIR")
     tasks: list[Task] = []
     seen: set[str] = set()
+    spread = platform_spread(library)
+    turns = {c: 0 for c in (*CATEGORIES, DEPENDENT)}
     for index, category in enumerate(plan):
+        turn = turns[category]
+        turns[category] += 1
         for attempt in range(max_attempts):
             rng = random.Random(f"jarvis-compose:{seed}:{index}:{attempt}")
-            task = compose_task(library, category, rng, max_subtasks)
+            choices = spread.get(category)
+            # SW round-robin over the platforms, MI and MD over the platform pairs; a choice that keeps failing
+            # hands over to the next one (after SPREAD_TRIES attempts), so every task still gets made
+            where = choices[(turn + attempt // SPREAD_TRIES) % len(choices)] if choices else None
+            task = compose_task(library, category, rng, max_subtasks, where)
             if task is None or _signature(task) in seen:
                 continue
             task = task.model_copy(update={"id": f"{task.category}-{index:04d}"})
