@@ -6,7 +6,7 @@ BIN := $(VENV)/bin
 JARVIS := $(BIN)/jarvis
 AGENT ?= oracle
 WORKERS ?= 2
-MARKERS ?= ubuntu
+MARKERS ?=
 PYTEST_ARGS ?=
 STAMP := $(VENV)/.installed
 
@@ -29,20 +29,23 @@ engine: setup
 images: engine
 	$(JARVIS) images build
 
-## host-packages: Debian packages the tests use on the host (chromium for the dashboard's browser tests)
+## host-packages: Debian packages the harness and tests use on the host (chromium for the dashboard's browser
+## tests; adb for Android devices; mksh and toybox, Android's shell and tools, for the adb escaping tests)
 host-packages:
-	@command -v chromium >/dev/null || { \
+	@missing=""; for c in chromium adb mksh toybox; do command -v $$c >/dev/null || missing="$$missing $$c"; done; \
+	if [ -n "$$missing" ]; then \
 	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
-	    apt-get -o DPkg::Lock::Timeout=600 update -q >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 install -y -q chromium >/dev/null; \
-	  else echo "missing chromium: run  sudo apt-get install -y chromium"; exit 1; fi; }
+	    apt-get -o DPkg::Lock::Timeout=600 update -q >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 install -y -q $$missing >/dev/null; \
+	  else echo "missing:$$missing: run  sudo apt-get install -y$$missing"; exit 1; fi; fi
 
 ## test: the project's own tests, container tests included
 test: images host-packages
 	$(BIN)/pytest -p no:cacheprovider tests -n $(WORKERS) $(PYTEST_ARGS)
 
-## bench: run the benchmark (the Ubuntu tasks; AGENT=oracle by default) and write the tables and a report
+## bench: run every task this machine's devices can run (AGENT=oracle by default; others are skipped with the
+## reason) and write the tables and a report; MARKERS="ubuntu and atomic" narrows it
 bench: images
-	$(BIN)/pytest tasks -n $(WORKERS) --agent $(AGENT) -m "$(MARKERS)" $(PYTEST_ARGS)
+	$(BIN)/pytest tasks -n $(WORKERS) --agent $(AGENT) $(if $(MARKERS),-m "$(MARKERS)") $(PYTEST_ARGS)
 
 ## clean-devices: remove containers and networks a crashed run left behind
 clean-devices: setup

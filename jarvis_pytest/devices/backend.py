@@ -80,6 +80,8 @@ BUILTIN: dict[str, dict[str, str]] = {
     "ubuntu": {"docker": "jarvis_pytest.devices.ubuntu.backend:BACKEND"},
     "windows": {"kvm": "jarvis_pytest.devices.windows.backend:KVM",
                 "wine": "jarvis_pytest.devices.windows.backend:WINE"},
+    "android": {"emulator": "jarvis_pytest.devices.android.backend:EMULATOR",
+                "attach": "jarvis_pytest.devices.android.backend:ATTACH"},
 }
 ALIASES = {("windows", "real"): "kvm"}
 _REGISTERED: dict[str, dict[str, Backend]] = {}

@@ -225,7 +225,8 @@ def build_image(client, spec: ImageSpec, base_tag: str, force: bool = False) -> 
 
 # Images that are not built from a Dockerfile here but prepared once on a capable machine (KVM, internet); only
 # built when named with `--only`: name → "module:function" returning what it prepared.
-PREPARED = {"windows-real": "jarvis_pytest.devices.windows.real:prepare"}
+PREPARED = {"windows-real": "jarvis_pytest.devices.windows.real:prepare",
+            "android": "jarvis_pytest.devices.android.image:build"}
 
 
 def build_all(names: list[str] | None = None, base: str | None = None, force: bool = False) -> dict[str, str]:

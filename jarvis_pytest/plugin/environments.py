@@ -5,11 +5,20 @@ from __future__ import annotations
 from jarvis_pytest.plugin.options import JarvisOptions
 
 
+def configure_backends(options: JarvisOptions) -> None:
+    """Hand backend settings from the options to the backends of this process."""
+    if options.android_serial or options.android_image:
+        from jarvis_pytest.devices.android.backend import configure
+
+        configure(serial=options.android_serial, image=options.android_image)
+
+
 def make_environments(options: JarvisOptions, *, run_id: str, worker: str):
     """A pool that boots (and pre-warms) the devices of each task; `acquire(platforms)`, `prewarm`, `close`."""
     from jarvis_pytest.infra.lifecycle import Lifecycle, Limits
     from jarvis_pytest.infra.pool import Pool
 
+    configure_backends(options)
     lifecycle = Lifecycle(run_id, worker, Limits(memory=options.device_memory, cpus=options.device_cpus),
                           transfer=options.transfer, backends=options.backends, egress=options.allow_egress)
     return Pool(lifecycle, enabled=options.prewarm)

@@ -43,6 +43,12 @@ def addoption(parser: pytest.Parser) -> None:
     g.addoption("--windows-backend", default="auto", help="the Windows device: kvm (alias real: a Windows VM, "
                 "needs /dev/kvm and a prepared disk), wine (the offline stand-in) or auto (kvm where prepared, "
                 "else wine); results record which ran")
+    g.addoption("--android-backend", default="auto", help="the Android device: emulator (a prepared emulator "
+                "image, needs /dev/kvm), attach (a device you name with --android-serial) or auto")
+    g.addoption("--android-serial", default=None, help="adb serial of the device the attach backend uses (a phone, "
+                "redroid, a running emulator; host:port serials are connected); env JARVIS_ANDROID_SERIAL")
+    g.addoption("--android-image", default=None, help="the emulator backend's image (default jarvis/android:latest); "
+                "env JARVIS_ANDROID_IMAGE")
     g.addoption("--allow-egress", action="store_true", help="let devices reach beyond their task network (the "
                 "host, the local network, the internet); off by default, and recorded in every result")
     g.addoption("--keep-devices", action="store_true", help="keep each task's devices after it ends, for debugging")
@@ -77,6 +83,8 @@ class JarvisOptions:
     endpoints: dict[str, dict[str, str | None]] = field(default_factory=dict)
     allow_egress: bool = False
     backends: dict[str, str] = field(default_factory=dict)  # platform → backend name (absent: the default)
+    android_serial: str | None = None
+    android_image: str | None = None
 
 
 def _endpoint(config: pytest.Config, role: str) -> dict[str, str | None]:
@@ -177,6 +185,7 @@ def read_options(config: pytest.Config) -> JarvisOptions:
         endpoints={"planner": _endpoint(config, "planner"), "grounder": _endpoint(config, "grounder")},
         allow_egress=config.getoption("--allow-egress"),
         backends=_backends(config),
+        android_serial=config.getoption("--android-serial"), android_image=config.getoption("--android-image"),
     )
 
 

@@ -112,6 +112,9 @@ class JarvisSession:
                 raise pytest.UsageError(f"--agent {self.options.agent}: {exc}") from None
         if self.options.transfer not in (None, "copyparty"):
             _check_transfer_image(self.options.transfer)
+        from jarvis_pytest.plugin.environments import configure_backends
+
+        configure_backends(self.options)
         for platform, name in self.options.backends.items():  # a backend asked for by name must be able to run
             from jarvis_pytest.devices.backend import backend_for
 
