@@ -214,6 +214,7 @@ class Grounding:
     screen_size: tuple[int, int]
     usage: dict[str, int] = field(default_factory=dict)
     seconds: float = 0.0
+    model_seconds: float = 0.0  # of `seconds`, the time waiting for the model's answer
 
     def record(self) -> dict[str, Any]:
         """A JSON-ready summary for the trajectory."""
@@ -304,4 +305,4 @@ class Grounder:
             raise GroundingError(f"{self.name}: {exc}", answer=result.text, usage=result.usage) from None
         x, y = self.to_screen(point, screen, sent)
         return Grounding(x=x, y=y, answer=result.text, model_point=point, sent_size=sent, screen_size=screen,
-                         usage=dict(result.usage), seconds=time.monotonic() - t0)
+                         usage=dict(result.usage), seconds=time.monotonic() - t0, model_seconds=result.seconds)

@@ -40,6 +40,12 @@ def _bench_devices(args) -> int:
     return bench.main(args)
 
 
+def _bench_throughput(args) -> int:
+    from jarvis_pytest.infra import throughput
+
+    return throughput.main(args)
+
+
 def register(sub) -> None:
     c = sub.add_parser("cleanup", help="remove containers, networks and volumes a crashed run left behind",
                        description="Without options: remove what runs whose process is gone left behind (runs "
@@ -56,6 +62,14 @@ def register(sub) -> None:
     d.add_argument("--samples", type=int, default=30, help="screenshots and actions to time (default 30)")
     d.add_argument("--json", action="store_true", help="print JSON")
     d.set_defaults(func=_bench_devices)
+    t = bsub.add_parser("throughput", help="model-bound throughput: real tasks, a loopback model with a fixed "
+                        "latency, once per worker count")
+    t.add_argument("--workers", default="1,2,4,8", help="xdist worker counts to run, comma-separated (default 1,2,4,8)")
+    t.add_argument("--latency-ms", type=int, default=2000, help="the model's answer time per call (default 2000)")
+    t.add_argument("--tasks", type=int, default=8, help="tasks per run (default 8)")
+    t.add_argument("--results", default=None, help="where the runs' results go (default reports/)")
+    t.add_argument("--json", action="store_true", help="print JSON")
+    t.set_defaults(func=_bench_throughput)
 
     p = sub.add_parser("engine", help="the Docker engine")
     esub = p.add_subparsers(dest="engine_command", required=True)

@@ -75,9 +75,11 @@ class _Trace:
     usage: dict[str, int] = field(default_factory=dict)
     groundings: list[dict[str, Any]] = field(default_factory=list)
     extra: dict[str, Any] = field(default_factory=dict)
+    model_seconds: float = 0.0  # time spent waiting for the models' answers
 
     def step(self, platform: str | None, action: Action | None, error: str | None = None) -> AgentStep:
         extra = dict(self.extra)
+        extra["model_ms"] = round(self.model_seconds * 1000, 1)
         if self.groundings:
             extra["grounding"] = self.groundings
         raw = "\n".join([self.raw] + [f"--- grounder ({g['instruction']}) ---\n{g['answer']}"
@@ -138,7 +140,7 @@ class PlannerGrounderAgent:
 
     def act(self, observations: dict[str, Observation], history: list[HistoryEntry]) -> AgentStep:
         result = self.planner.chat(self.planner_messages(observations, history), **self.planner_params)
-        trace = _Trace(raw=result.text)
+        trace = _Trace(raw=result.text, model_seconds=result.seconds)
         _add_usage(trace.usage, result.usage, "planner")
         try:
             step = parse_planner_output(result.text)
@@ -181,6 +183,7 @@ class PlannerGrounderAgent:
             trace.groundings.append({"instruction": description, "answer": exc.answer or ""})
             raise
         _add_usage(trace.usage, g.usage, "grounder")
+        trace.model_seconds += g.model_seconds
         trace.groundings.append({"instruction": description, **g.record()})
         (w, h), (sx, sy) = _screen_of(obs), g.screen_size
         if (sx, sy) == (w, h):

@@ -1,0 +1,147 @@
+"""`jarvis bench throughput`: how many tasks one machine carries when the wait is for a model.
+
+The same real atomic tasks (Ubuntu's `mousepad-write_note` instances: real devices, set-up, evaluation) run with
+the planner–grounder agent (`holo2`) against the project's loopback OpenAI-compatible server, which answers each
+model call after a fixed latency with a scripted plan that really solves the task (click the editor, type the
+note, save, done). Once per worker count it reports tasks/hour, the speed-up against one worker, the share of
+worker time spent waiting for devices (cold starts not hidden by pre-warming), the harness's overhead per step
+with model time taken out (observation + execution + the agent's own work, p50/p90), and the peak memory of the
+run (device containers from their cgroups, plus the pytest processes).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+import threading
+import time
+import uuid
+from pathlib import Path
+from typing import Any
+
+from jarvis_pytest.agents.planner import render_step
+from jarvis_pytest.infra.bench import percentile
+from jarvis_pytest.llm.fake_server import FakeChatServer, Reply, RecordedRequest
+
+REPO_ROOT = Path(__file__).resolve().parents[2]
+TASK = "mousepad-write_note"
+CGROUP_MEMORY = Path("/sys/fs/cgroup/memory/docker")  # cgroup v1, cgroupfs driver (Debian's docker.io)
+
+
+def planner_reply(req: RecordedRequest, latency: float) -> Reply:
+    """The scripted plan: the step to take follows from how many steps the prompt's history already lists."""
+    prompt = req.text("system")
+    history = prompt.rsplit("Current history:", 1)[-1]
+    done = len(re.findall(r"^Step \d+ on ubuntu: ", history, flags=re.M))
+    note = re.search(r'type the text "(.*)" and save', prompt)
+    text = note.group(1) if note else ""
+    steps = [render_step("ubuntu", "Click into the editor", {"action": "left_click"}, "the text area of the editor"),
+             render_step("ubuntu", "Type the note", {"action": "type", "text": text}),
+             render_step("ubuntu", "Save", {"action": "key", "keys": ["ctrl", "s"]}),
+             render_step("ubuntu", "Saved", {"action": "terminate", "status": "success"})]
+    return Reply(text=steps[min(done, len(steps) - 1)], delay=latency)
+
+
+def _memory_mb(run_id: str, docker: Any) -> float:
+    """Memory now: the run's containers (cgroup usage) and the pytest processes (RSS)."""
+    total = 0
+    for c in docker.api.containers(filters={"label": f"org.jarvis.run={run_id}"}):
+        try:
+            total += int((CGROUP_MEMORY / c["Id"] / "memory.usage_in_bytes").read_text())
+        except (OSError, ValueError):
+            pass
+    for pid in os.listdir("/proc"):
+        if not pid.isdigit():
+            continue
+        try:
+            cmd = Path(f"/proc/{pid}/cmdline").read_bytes()
+            if b"pytest" in cmd and run_id.encode() in cmd or b"xdist" in cmd and b"execnet" in cmd:
+                for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+                    if line.startswith("VmRSS:"):
+                        total += int(line.split()[1]) * 1024
+        except OSError:
+            pass
+    return total / 2**20
+
+
+def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path) -> dict[str, Any]:
+    """One benchmark run with `workers` xdist workers; the figures of the run."""
+    from jarvis_pytest.infra.engine import client
+    from jarvis_pytest.report.rollup import load_results
+
+    latency = latency_ms / 1000
+    run_dir = out_root / f"throughput-w{workers}-{uuid.uuid4().hex[:6]}"
+    fake = FakeChatServer(models=("planner", "grounder"))
+    fake.respond_with(lambda req: planner_reply(req, latency), model="planner")
+    fake.respond_with(lambda req: Reply(text='{"x": 500, "y": 500}', delay=latency), model="grounder")
+    docker = client()
+    peak = 0.0
+    stop = threading.Event()
+
+    def sample() -> None:
+        nonlocal peak
+        while not stop.wait(1.0):
+            peak = max(peak, _memory_mb(run_dir.name, docker))
+
+    with fake:
+        cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-q", str(REPO_ROOT / "tasks" / "test_atomic.py"),
+               "-n", str(workers), "--agent", "holo2", "--planner-base-url", fake.url, "--planner-model", "planner",
+               "--grounder-base-url", fake.url, "--grounder-model", "grounder", "-k", TASK,
+               "--instances", str(tasks), "--results-dir", str(run_dir), "--step-timeout", str(60 + 4 * latency)]
+        sampler = threading.Thread(target=sample, daemon=True)
+        sampler.start()
+        t0 = time.monotonic()
+        proc = subprocess.run(cmd, cwd=REPO_ROOT, capture_output=True, text=True)
+        wall = time.monotonic() - t0
+        stop.set()
+    results = load_results(run_dir)[0]
+    passed = sum(r.status == "passed" for r in results)
+    boot = sum(r.durations.get("boot", 0.0) for r in results)
+    overhead = []
+    for r in results:
+        traj = run_dir / "tasks" / re.sub(r"[^A-Za-z0-9._-]+", "_", r.task_id).strip("_") / "traj.jsonl"
+        for line in traj.read_text().splitlines() if traj.exists() else []:
+            s = json.loads(line)
+            model = float((s.get("extra") or {}).get("model_ms", 0.0))
+            overhead.append(s["observe_ms"] + s["exec_ms"] + max(0.0, s["agent_ms"] - model))
+    return {"workers": workers, "tasks": len(results), "passed": passed, "wall_s": round(wall, 1),
+            "tasks_per_hour": round(len(results) / wall * 3600, 1) if wall else 0.0,
+            "cold_start_share": round(boot / (wall * workers), 3) if wall else 0.0,
+            "overhead_ms": {"p50": round(percentile(overhead, 0.5), 1) if overhead else None,
+                            "p90": round(percentile(overhead, 0.9), 1) if overhead else None, "steps": len(overhead)},
+            "peak_memory_mb": round(peak), "exit": proc.returncode, "results": str(run_dir),
+            "output_tail": proc.stdout[-600:] if proc.returncode else ""}
+
+
+def measure(worker_counts: list[int], latency_ms: int, tasks: int, out_root: Path) -> dict[str, Any]:
+    runs = [run_once(w, latency_ms, tasks, out_root) for w in worker_counts]
+    base = runs[0]["tasks_per_hour"] if runs else 0.0
+    for r in runs:
+        r["speedup"] = round(r["tasks_per_hour"] / base, 2) if base else None
+    return {"task": TASK, "latency_ms": latency_ms, "tasks": tasks, "cores": os.cpu_count(), "runs": runs}
+
+
+def render(result: dict[str, Any]) -> str:
+    lines = [f"{result['tasks']} × {result['task']} per run, model latency {result['latency_ms']} ms per call, "
+             f"{result['cores']} cores",
+             f"{'workers':>7} {'tasks/h':>9} {'speed-up':>9} {'cold-start':>11} {'overhead p50':>13} {'p90':>7} "
+             f"{'peak MB':>8} {'passed':>7}"]
+    for r in result["runs"]:
+        o = r["overhead_ms"]
+        lines.append(f"{r['workers']:>7} {r['tasks_per_hour']:>9.1f} {r['speedup'] or 0:>8.2f}× "
+                     f"{100 * r['cold_start_share']:>10.1f}% {o['p50'] or 0:>11.1f} ms {o['p90'] or 0:>4.0f} ms "
+                     f"{r['peak_memory_mb']:>8} {r['passed']:>3}/{r['tasks']}")
+    return "\n".join(lines)
+
+
+def main(args) -> int:
+    workers = [int(w) for w in str(args.workers).split(",") if w.strip()]
+    if not workers or min(workers) < 1:
+        print("jarvis bench throughput: --workers takes counts of 1 or more, e.g. 1,2,4,8", file=sys.stderr)
+        return 2
+    result = measure(workers, args.latency_ms, args.tasks, Path(args.results or REPO_ROOT / "reports"))
+    print(json.dumps(result, indent=2) if args.json else render(result))
+    return 0 if all(r["exit"] == 0 for r in result["runs"]) else 1
