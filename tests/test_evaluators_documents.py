@@ -374,3 +374,199 @@ def test_same_text_and_pdf_evaluators_compare_with_the_source():
     assert not verdict.passed and "lacking ['Guide to fire safety'" in verdict.reason
     verdict = pdf_of(state_with({"/s.docx": sample}), path="/s.pdf", document="/s.docx")
     assert not verdict.passed and "no file at /s.pdf" in verdict.reason
+
+
+# --- near misses: what was not asked stays as set up (the baseline), list labels, the table's place ---------------
+
+def with_baseline(files: dict[str, bytes], baselines: dict[str, bytes]):
+    """A device holding `files`, whose `baselines` (the files right after set-up) the template listed."""
+    return state_with(files, baselines=baselines)
+
+
+def list_style(name: str, numbered: bool):
+    from odf.text import ListLevelStyleBullet, ListLevelStyleNumber, ListStyle
+    style = ListStyle(name=name)
+    style.addElement(ListLevelStyleNumber(level=1, numformat="1") if numbered else
+                     ListLevelStyleBullet(level=1, bulletchar="•"))
+    return style
+
+
+def test_list_labels_bullets_or_numbers_in_both_formats():
+    bullets = read_document(odt([bulleted(LINES)], [list_style("L1", numbered=False)]))
+    numbers = read_document(odt([bulleted(LINES)], [list_style("L1", numbered=True)]))
+    assert [p.marker for p in bullets.paragraphs] == ["bullet"] * 3 and numbers.paragraphs[0].marker == "number"
+    assert check_lines_listed(bullets, LINES, "bullet").passed
+    verdict = check_lines_listed(numbers, LINES, "bullet")
+    assert not verdict.passed and "expected all 3 lines as list items of a bulleted list" in verdict.reason
+    assert "labelled 'number' instead of 'bullet'" in verdict.reason
+    assert check_lines_listed(numbers, LINES).passed  # no label asked for: any list
+
+    def styled(name):
+        def edit(d):
+            for p in d.paragraphs:
+                p.style = d.styles[name]
+        return edit
+    assert check_lines_listed(read_document(docx_edited(styled("List Bullet"))), LINES, "bullet").passed
+    verdict = check_lines_listed(read_document(docx_edited(styled("List Number"))), LINES, "bullet")
+    assert not verdict.passed and "labelled 'number'" in verdict.reason
+    # what Writer 7.4 wrote from <ul> and <ol>: numbering.xml's numFmt bullet / decimal
+    doc = read_document((OFFICE / "libreoffice_sample.docx").read_bytes())
+    assert check_lines_listed(doc, ["one", "two"], "bullet").passed
+    assert not check_lines_listed(doc, ["one", "two"], "number").passed
+
+
+def test_bullet_list_keeps_the_document_as_set_up():
+    path = "/home/user/Documents/todo.docx"
+    fresh = generate("docx_document", {"paragraphs": LINES})
+    run = get_evaluator("document_lines_listed")
+    args = {"path": path, "lines": LINES, "kind": "docx", "marker": "bullet"}
+
+    def bullets(extra=None):
+        def edit(d):
+            if extra:
+                d.add_paragraph(extra)
+            for p in d.paragraphs:
+                p.style = d.styles["List Bullet"]
+        return docx_edited(edit)
+    assert run(with_baseline({path: bullets()}, {path: fresh}), **args).passed
+    verdict = run(with_baseline({path: bullets("Call the caterer")}, {path: fresh}), **args)
+    assert not verdict.passed and "expected the rest of the text unchanged (3 paragraphs as set up)" in verdict.reason
+    assert "added ['Call the caterer']" in verdict.reason
+    # fed by an upstream subtask (no baseline): only the lines are judged
+    assert run(state_with({path: bullets("Call the caterer")}), **args).passed
+
+
+def test_bold_title_with_a_line_added_or_reworded():
+    path = "/home/user/Documents/memo.odt"
+    fresh = generate("odt_document", {"paragraphs": TITLE})
+    run = get_evaluator("document_paragraph_bold")
+    args = {"path": path, "text": TITLE[0], "others": TITLE[1:], "kind": "odt"}
+    solved = odt([plain_p(TITLE[0], "P1")] + [plain_p(t) for t in TITLE[1:]], [bold_style("P1")])
+    assert run(with_baseline({path: solved}, {path: fresh}), **args).passed
+    draft = odt([plain_p(TITLE[0], "P1")] + [plain_p(t) for t in TITLE[1:]] + [plain_p("DRAFT - do not circulate")],
+                [bold_style("P1")])
+    verdict = run(with_baseline({path: draft}, {path: fresh}), **args)
+    assert not verdict.passed and "added ['DRAFT - do not circulate']" in verdict.reason
+    reworded = odt([plain_p(TITLE[0], "P1"), plain_p("This note explains it."), plain_p(TITLE[2])], [bold_style("P1")])
+    verdict = run(with_baseline({path: reworded}, {path: fresh}), **{**args, "others": None})
+    assert not verdict.passed and "missing ['This note explains the change in detail.']" in verdict.reason
+    # a Word file under the .odt name fails on its format
+    word = docx_edited(lambda d: setattr(d.paragraphs[0].runs[0], "bold", True), TITLE)
+    verdict = run(with_baseline({path: word}, {path: fresh}), **args)
+    assert not verdict.passed and "expected a .odt document, found a .docx document" in verdict.reason
+
+
+def test_replace_word_is_the_original_with_the_word_replaced():
+    path = "/home/user/Documents/contract.docx"
+    original = ["Agreement between Contoso and the client", "Contoso will deliver the service monthly.",
+                "Invoices are sent by Contoso at the end of each month."]
+    new = [t.replace("Contoso", "Litware") for t in original]
+    fresh = generate("docx_document", {"paragraphs": original})
+    run = get_evaluator("document_text_has")
+    args = {"path": path, "contains": new[:2], "absent": ["Contoso"], "kind": "docx",
+            "replace": [["Contoso", "Litware"]]}
+    assert run(with_baseline({path: generate("docx_document", {"paragraphs": new})}, {path: fresh}), **args).passed
+    assert not run(with_baseline({path: fresh}, {path: fresh}), **args).passed
+    # the mousepad-style cheap state: only the sentences the check names, the third paragraph gone
+    two = generate("docx_document", {"paragraphs": new[:2]})
+    verdict = run(with_baseline({path: two}, {path: fresh}), **args)
+    assert not verdict.passed and "missing ['Invoices are sent by Litware at the end of each month.']" in verdict.reason
+    assert "expected the original text with only the replacements made (3 paragraphs as set up)" in verdict.reason
+    assert run(state_with({path: two}), **args).passed  # without a baseline only contains/absent can be judged
+    signed = generate("docx_document", {"paragraphs": new + ["Signed: Litware"]})
+    verdict = run(with_baseline({path: signed}, {path: fresh}), **args)
+    assert not verdict.passed and "added ['Signed: Litware']" in verdict.reason
+    # {old: new} works as well as [[old, new]]
+    as_dict = {**args, "replace": {"Contoso": "Litware"}}
+    assert run(with_baseline({path: generate("docx_document", {"paragraphs": new})}, {path: fresh}), **as_dict).passed
+    assert not run(with_baseline({path: signed}, {path: fresh}), **as_dict).passed
+
+
+INTRO = ["Overview", "The table below lists the details."]
+
+
+@pytest.mark.parametrize("rows", [3, 5])
+def test_table_at_the_end_with_the_header_row_counted(rows):
+    """The fair reading of "a table with 3 columns and N rows in total (the header row counts as one)": N rows
+    with the header passes; N + 1 (the header not counted) does not; nor does a table at the top, or the
+    document's own paragraphs deleted, or a Word file under the .odt name."""
+    path = "/home/user/Documents/schedule.odt"
+    fresh = generate("odt_document", {"paragraphs": INTRO})
+    run = get_evaluator("document_has_table")
+    args = {"path": path, "rows": str(rows), "cols": 3, "header": HEAD, "kind": ".odt", "at_end": True}
+    table = [HEAD] + [["", "", ""]] * (rows - 1)
+    intro = [plain_p(t) for t in INTRO]
+    good = odt(intro + [odt_table(table, header_rows=1), plain_p("")])
+    assert run(with_baseline({path: good}, {path: fresh}), **args).passed
+    longer = odt(intro + [odt_table(table + [["", "", ""]]), plain_p("")])
+    verdict = run(with_baseline({path: longer}, {path: fresh}), **args)
+    assert not verdict.passed and f"found tables {rows + 1}×3" in verdict.reason
+    verdict = run(with_baseline({path: odt([odt_table(table)] + intro)}, {path: fresh}), **args)
+    assert not verdict.passed and "at the end" in verdict.reason and "text after it: ['Overview'" in verdict.reason
+    verdict = run(with_baseline({path: odt([odt_table(table), plain_p("")])}, {path: fresh}), **args)
+    assert not verdict.passed and "missing ['Overview', 'The table below lists the details.']" in verdict.reason
+
+    def word_table(d):
+        t = d.add_table(rows=rows, cols=3)
+        for i, text in enumerate(HEAD):
+            t.cell(0, i).text = text
+        d.add_paragraph("")
+    word = docx_edited(word_table, INTRO)
+    verdict = run(with_baseline({path: word}, {path: fresh}), **args)
+    assert not verdict.passed and "expected a .odt document, found a .docx document" in verdict.reason
+    assert run(with_baseline({path: word}, {path: fresh}), **{**args, "kind": ".docx"}).passed  # a fed .docx
+
+
+def test_insert_table_instruction_says_the_header_row_counts():
+    from jarvis_pytest.tasks.instances import atomic_task
+    from jarvis_pytest.tasks.library import read_template_file
+
+    library = Path(__file__).resolve().parents[1] / "tasks" / "ubuntu"
+    [template] = read_template_file(library / "writer_insert_table.json")
+    for seed in range(3):
+        sub = atomic_task(template, seed).formatted_subtasks[0]
+        rows = int(sub.input["rows"].value)
+        assert f"3 columns and {rows} rows in total (its first row, the header row, counts as one" in sub.instruction
+        setup = next(s for s in sub.config if getattr(s, "generator", None) == "odt_document")
+        fresh = generate("odt_document", dict(setup.args))
+        [spec] = sub.evaluate
+        head = [sub.input[c].value for c in ("col1", "col2", "col3")]
+        made = odt([plain_p(t) for t in paragraph_lines(fresh)] + [odt_table([head] + [["", "", ""]] * (rows - 1), 1),
+                                                                   plain_p("")])
+        path = spec.args["path"]
+        assert get_evaluator(spec.func)(with_baseline({path: made}, {path: fresh}), **spec.args).passed
+        assert not get_evaluator(spec.func)(with_baseline({path: fresh}, {path: fresh}), **spec.args).passed
+
+
+def test_copies_and_pdfs_compare_with_the_source_as_set_up():
+    src, out = "/home/user/Documents/handbook.docx", "/home/user/Documents/handbook.odt"
+    lines = ["Guide to fire safety", "Read this before your first week.", "Ask your manager if anything is unclear."]
+    source = generate("docx_document", {"paragraphs": lines})
+    one = generate("docx_document", {"paragraphs": lines[:1]})
+    one_odt = odt([plain_p(lines[0])])
+    same = get_evaluator("document_same_text")
+    good = odt([plain_p(t) for t in lines])
+    assert same(with_baseline({src: source, out: good}, {src: source}), path=out, reference=src, kind="odt").passed
+    # the source cut down to one line and a copy made of that: passes only when the original is not known
+    assert same(state_with({src: one, out: one_odt}), path=out, reference=src, kind="odt").passed
+    verdict = same(with_baseline({src: one, out: one_odt}, {src: source}), path=out, reference=src, kind="odt")
+    assert not verdict.passed and "expected the 3 paragraphs of" in verdict.reason and "missing [" in verdict.reason
+    # a right copy, but the source emptied afterwards
+    verdict = same(with_baseline({src: one, out: good}, {src: source}), path=out, reference=src, kind="odt")
+    assert not verdict.passed and f"the original {src} unchanged" in verdict.reason
+    verdict = same(with_baseline({out: good}, {src: source}), path=out, reference=src, kind="odt")
+    assert not verdict.passed and f"no file at {src}" in verdict.reason
+
+    pdf_of = get_evaluator("pdf_matches_document")
+    sample, pdf = (OFFICE / "libreoffice_sample.docx").read_bytes(), (OFFICE / "libreoffice_export.pdf").read_bytes()
+    assert pdf_of(with_baseline({"/s.docx": sample, "/s.pdf": pdf}, {"/s.docx": sample}),
+                  path="/s.pdf", document="/s.docx").passed
+    # a document cut down to what the PDF shows: the original's text is still asked for
+    cut = generate("docx_document", {"paragraphs": ["Title here", "Bold para"]})
+    assert pdf_of(state_with({"/s.docx": cut, "/s.pdf": pdf}), path="/s.pdf", document="/s.docx").passed
+    verdict = pdf_of(with_baseline({"/s.docx": cut, "/s.pdf": pdf}, {"/s.docx": source}), path="/s.pdf",
+                     document="/s.docx")
+    assert not verdict.passed and "lacking ['Guide to fire safety'" in verdict.reason
+    verdict = pdf_of(with_baseline({"/s.docx": cut, "/s.pdf": pdf}, {"/s.docx": sample}), path="/s.pdf",
+                     document="/s.docx")
+    assert not verdict.passed and "the original /s.docx unchanged" in verdict.reason

@@ -143,3 +143,80 @@ def test_presentations_titles_and_notes():
     kind, slides = read_presentation(buf.getvalue())
     assert check_slide_title(kind, slides, 2, "Roadmap", 3).passed
     assert check_notes(slides, 1, "Pause here").passed and not check_notes(slides, 4, "x").passed
+
+
+# --- the issue's three cheap Calc states, through the templates themselves ----------------------------------------
+
+LIBRARY = Path(__file__).resolve().parents[1] / "tasks" / "ubuntu"
+
+
+def instance(name: str, seed: int):
+    """Seeded instance `seed` of template `name`: its subtask, and the file its set-up uploads, made on the host
+    from the same generator and arguments."""
+    from jarvis_pytest.tasks.instances import atomic_task
+    from jarvis_pytest.tasks.library import read_template_file
+
+    [template] = read_template_file(LIBRARY / f"{name}.json")
+    sub = atomic_task(template, seed).formatted_subtasks[0]
+    upload = next(s for s in sub.config if getattr(s, "generator", None))
+    assert upload.path in sub.baseline, f"{name}: the set-up file {upload.path} is not under baseline"
+    return sub, upload.path, generate(upload.generator, dict(upload.args))
+
+
+def judge(sub, files: dict[str, bytes], baselines: dict[str, bytes]) -> list:
+    from file_state import state_with
+    from jarvis_pytest.evaluators import get_evaluator
+
+    state = state_with(files, baselines=baselines)
+    return [get_evaluator(spec.func)(state, **spec.args) for spec in sub.evaluate]
+
+
+def ods_of(rows: list[list[object]]) -> bytes:
+    from jarvis_pytest.generators.spreadsheets import ods_bytes
+    return ods_bytes(rows[0], rows[1:])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_calc_sum_total_csv_over_the_ods(seed):
+    sub, path, fresh = instance("calc_sum_total", seed)
+    cell = sub.input["cell"].value
+    rows = next(iter(read_workbook(fresh)[1].values()))
+    r, c = int(cell[1:]) - 1, ord(cell[0]) - 65
+    solved = [list(x) + [None] * (c + 1 - len(x)) for x in rows] + [[None] * (c + 1) for _ in range(r + 1 - len(rows))]
+    solved[r][c] = sum(x[2] for x in rows[1:])
+    assert all(v.passed for v in judge(sub, {path: ods_of(solved)}, {path: fresh}))
+    grid = [[""] * 6 for _ in range(max(r + 1, 3))]
+    grid[0][:3], grid[1][2], grid[r][c] = ["name", "team", "score"], "1", "1"
+    artefact = ("\n".join(",".join(x) for x in grid) + "\n").encode()
+    [verdict] = judge(sub, {path: artefact}, {path: fresh})
+    assert not verdict.passed and verdict.reason == "expected a .ods spreadsheet, found a .csv file"
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_calc_delete_rows_header_and_seven_junk_rows(seed):
+    sub, path, fresh = instance("calc_delete_rows", seed)
+    status = sub.input["status"].value
+    rows = next(iter(read_workbook(fresh)[1].values()))
+    kept = [r for r in rows if r[3] != status]
+    assert all(v.passed for v in judge(sub, {path: ods_of(kept)}, {path: fresh}))
+    junk = ods_of(rows[:1] + [[f"x{i}", "North", i, "open"] for i in range(7)])
+    [verdict] = judge(sub, {path: junk}, {path: fresh})
+    assert not verdict.passed and "expected the other 7 rows of the original, in order, no gaps" in verdict.reason
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_calc_sort_rows_header_only_csv_copied_over_the_original(seed):
+    from jarvis_pytest.evaluators.spreadsheets import _sort_key, descending_order
+
+    sub, path, fresh = instance("calc_sort_rows", seed)
+    out, column = sub.output["sorted"].value, sub.input["column"].value
+    rows = next(iter(read_workbook(fresh)[1].values()))
+    i = rows[0].index(column)
+    ordered = [rows[0]] + sorted(rows[1:], key=lambda r: _sort_key(r[i]),
+                                 reverse=descending_order(sub.input["order"].value))
+    good = ("\n".join(",".join(f"{v:g}" if isinstance(v, float) else str(v) for v in r) for r in ordered)
+            + "\n").encode()
+    assert all(v.passed for v in judge(sub, {path: fresh, out: good}, {path: fresh}))
+    header = b"Name,Team,Score,Status\n"
+    [verdict] = judge(sub, {path: header, out: header}, {path: fresh})
+    assert not verdict.passed and "found 0 data rows that are not the original's 10" in verdict.reason

@@ -34,9 +34,10 @@ def pptx_deck(titles=TITLES, edit=None) -> bytes:
     return buf.getvalue()
 
 
-def odp_deck(titles=TITLES, notes: dict[int, str] | None = None) -> bytes:
-    """An .odp shaped like Impress's own: per slide a title frame, an outline frame with a bulleted list, and a
-    notes page (thumbnail + notes frame, empty unless `notes` has text for that 1-based slide number)."""
+def odp_deck(titles=TITLES, notes: dict[int, str] | None = None, bodies: dict[int, str] | None = None) -> bytes:
+    """An .odp shaped like Impress's own: per slide a title frame, an outline frame with a bulleted list
+    ("Point i: title" unless `bodies` has another text, "" for none, for that 1-based slide number), and a notes
+    page (thumbnail + notes frame, empty unless `notes` has text for that 1-based slide number)."""
     from odf.draw import Frame, Page, PageThumbnail, TextBox
     from odf.namespaces import PRESENTATIONNS
     from odf.opendocument import OpenDocumentPresentation
@@ -65,7 +66,8 @@ def odp_deck(titles=TITLES, notes: dict[int, str] | None = None) -> bytes:
         head.addElement(Span(text=title))
         page.addElement(frame("title", head))
         item = ListItem()
-        item.addElement(P(text=f"Point {i}: {title}"))
+        line = (bodies or {}).get(i, f"Point {i}: {title}")
+        item.addElement(P(text=line) if line else P())
         bullets = List()
         bullets.addElement(item)
         page.addElement(frame("outline", bullets))
@@ -214,12 +216,133 @@ def test_slide_title_is_and_notes_evaluators():
 def test_pdf_matches_presentation():
     evaluate = get_evaluator("pdf_matches_presentation")
     deck, pdf = "/home/user/Downloads/slides.pptx", "/home/user/Downloads/slides.pdf"
-    good = minimal_pdf(TITLES)
+    good = minimal_pdf([f"{t} Point {i}: {t}" for i, t in enumerate(TITLES, 1)])
     assert evaluate(state_with({deck: pptx_deck(), pdf: good}), path=pdf, presentation=deck).passed
     assert evaluate(state_with({deck: odp_deck(), pdf: good}), path=pdf, presentation=deck).passed
-    short = evaluate(state_with({deck: pptx_deck(), pdf: minimal_pdf(TITLES[:4])}), path=pdf, presentation=deck)
+    short = evaluate(state_with({deck: pptx_deck(), pdf: minimal_pdf([f"{t} Point {i}: {t}" for i, t in
+                                                                      enumerate(TITLES[:4], 1)])}),
+                     path=pdf, presentation=deck)
     assert not short.passed and "4 page(s)" in short.reason and "Next steps" in short.reason
     fake = evaluate(state_with({deck: pptx_deck(), pdf: pptx_deck()}), path=pdf, presentation=deck)
     assert not fake.passed and "no PDF" in fake.reason
     absent = evaluate(state_with({deck: pptx_deck()}), path=pdf, presentation=deck)
     assert not absent.passed and f"no file at {pdf}" in absent.reason
+
+
+# --- near misses: the slides not asked about stay as set up (the baseline) ------------------------------------------
+
+def with_baseline(files: dict[str, bytes], baselines: dict[str, bytes]):
+    """A device holding `files`, whose `baselines` (the files right after set-up) the template listed."""
+    return state_with(files, baselines=baselines)
+
+
+def test_add_slide_keeps_the_other_slides():
+    path = "/home/user/Documents/lecture.odp"
+    want = TITLES + ["Thank you"]
+    run = get_evaluator("slide_titles_are")
+    args = {"path": path, "titles": want, "kind": "odp"}
+    fresh = odp_deck()
+    assert run(with_baseline({path: odp_deck(want, bodies={6: ""})}, {path: fresh}), **args).passed
+    emptied = odp_deck(want, bodies={i: "" for i in range(1, 7)})
+    assert run(state_with({path: emptied}), **args).passed  # how it passed before: titles only
+    verdict = run(with_baseline({path: emptied}, {path: fresh}), **args)
+    assert not verdict.passed and verdict.reason == ("expected the other slides unchanged, found slide "
+                                                     "'Safety week overview' changed: text [] instead of "
+                                                     "['Point 1: Safety week overview']")
+    noted = odp_deck(want, notes={2: "psst"})
+    verdict = run(with_baseline({path: noted}, {path: fresh}), **args)
+    assert not verdict.passed and "slide 'Timeline' changed: notes 'psst' instead of ''" in verdict.reason
+
+
+def test_change_title_keeps_everything_else():
+    path = "/home/user/Documents/review.pptx"
+    run = get_evaluator("slide_title_is")
+    args = {"path": path, "number": "3", "title": "Roadmap", "count": 5, "kind": "pptx"}
+    fresh = pptx_deck()
+
+    def retitle(*more):
+        def edit(prs):
+            prs.slides[2].shapes.title.text = "Roadmap"
+            for fn in more:
+                fn(prs)
+        return pptx_deck(edit=edit)
+    assert run(with_baseline({path: retitle()}, {path: fresh}), **args).passed
+    agenda = retitle(lambda prs: setattr(prs.slides[0].shapes.title, "text", "Agenda"))
+    assert run(state_with({path: agenda}), **args).passed  # how it passed before: slide 3 only
+    verdict = run(with_baseline({path: agenda}, {path: fresh}), **args)
+    assert not verdict.passed and verdict.reason == ("expected the other slides unchanged, found slide 1 changed: "
+                                                     "title 'Agenda' instead of 'Safety week overview'")
+
+    def no_bodies(prs):
+        for slide in prs.slides:
+            slide.placeholders[1].text_frame.text = ""
+    verdict = run(with_baseline({path: retitle(no_bodies)}, {path: fresh}), **args)
+    assert not verdict.passed
+    assert "slide 1 changed: text [] instead of ['Point 1: Safety week overview']" in verdict.reason
+    own_body = retitle(lambda prs: setattr(prs.slides[2].placeholders[1].text_frame, "text", "Roadmap"))
+    verdict = run(with_baseline({path: own_body}, {path: fresh}), **args)
+    assert not verdict.passed and "slide 3 changed: text ['Roadmap'] instead of ['Point 3: Budget']" in verdict.reason
+
+
+def test_delete_slide_keeps_the_others():
+    path = "/home/user/Documents/retro.pptx"
+    run = get_evaluator("slide_titles_are")
+    args = {"path": path, "titles": TITLES, "without": "Budget", "kind": "pptx"}
+    fresh = pptx_deck()
+
+    def delete_budget(*more):
+        def edit(prs):
+            for fn in more:
+                fn(prs)
+            ids = prs.slides._sldIdLst
+            ids.remove(list(ids)[2])
+        return pptx_deck(edit=edit)
+    assert run(with_baseline({path: delete_budget()}, {path: fresh}), **args).passed
+    hit = delete_budget(lambda prs: setattr(prs.slides[3].placeholders[1].text_frame, "text", ""))
+    assert run(state_with({path: hit}), **args).passed  # how it passed before: titles only
+    verdict = run(with_baseline({path: hit}, {path: fresh}), **args)
+    assert not verdict.passed and "slide 'Risks' changed: text [] instead of ['Point 4: Risks']" in verdict.reason
+
+
+def test_speaker_notes_on_one_slide_in_the_format_asked():
+    path = "/home/user/Documents/townhall.pptx"
+    run = get_evaluator("slide_notes_contain")
+    args = {"path": path, "number": "3", "text": "Mention the pilot results", "kind": "pptx"}
+    fresh = pptx_deck()
+
+    def noted(*numbers):
+        def edit(prs):
+            for n in numbers:
+                prs.slides[n - 1].notes_slide.notes_text_frame.text = "Mention the pilot results"
+        return pptx_deck(edit=edit)
+    assert run(with_baseline({path: noted(3)}, {path: fresh}), **args).passed
+    everywhere = noted(1, 2, 3, 4, 5)
+    assert run(state_with({path: everywhere}), **args).passed  # how it passed before: slide 3 only
+    verdict = run(with_baseline({path: everywhere}, {path: fresh}), **args)
+    assert not verdict.passed and verdict.reason == ("expected the other slides unchanged, found slide 1 changed: "
+                                                     "notes 'Mention the pilot results' instead of ''")
+    as_odp = odp_deck(notes={3: "Mention the pilot results"})
+    verdict = run(with_baseline({path: as_odp}, {path: fresh}), **args)
+    assert not verdict.passed and verdict.reason == "expected a .pptx presentation, found a .odp file"
+    in_body = pptx_deck(edit=lambda prs: setattr(prs.slides[2].placeholders[1].text_frame, "text",
+                                                 "Point 3: Budget Mention the pilot results"))
+    verdict = run(with_baseline({path: in_body}, {path: fresh}), **args)
+    assert not verdict.passed and "no notes" in verdict.reason
+
+
+def test_pdf_of_the_deck_as_set_up():
+    deck, pdf = "/home/user/Downloads/slides.pptx", "/home/user/Downloads/slides.pdf"
+    evaluate = get_evaluator("pdf_matches_presentation")
+    fresh = pptx_deck()
+    good = minimal_pdf([f"{t} Point {i}: {t}" for i, t in enumerate(TITLES, 1)])
+    assert evaluate(with_baseline({deck: fresh, pdf: good}, {deck: fresh}), path=pdf, presentation=deck).passed
+    titles_only = minimal_pdf(TITLES)
+    verdict = evaluate(with_baseline({deck: fresh, pdf: titles_only}, {deck: fresh}), path=pdf, presentation=deck)
+    assert not verdict.passed and "lacking ['Point 1: Safety week overview'" in verdict.reason
+    # the deck cut to its first slide and a PDF of that
+    one, one_pdf = pptx_deck(TITLES[:1]), minimal_pdf([f"{TITLES[0]} Point 1: {TITLES[0]}"])
+    assert evaluate(state_with({deck: one, pdf: one_pdf}), path=pdf, presentation=deck).passed  # before: as found
+    verdict = evaluate(with_baseline({deck: one, pdf: one_pdf}, {deck: fresh}), path=pdf, presentation=deck)
+    assert not verdict.passed and "on 5 pages" in verdict.reason and "found 1 page(s)" in verdict.reason
+    verdict = evaluate(with_baseline({deck: one, pdf: good}, {deck: fresh}), path=pdf, presentation=deck)
+    assert not verdict.passed and f"expected the other slides unchanged, found 1 slides instead of 5" in verdict.reason

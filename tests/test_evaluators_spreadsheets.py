@@ -253,7 +253,7 @@ def test_cell_aggregate_typed_in_or_a_formula(fmt):
     scores = [r[2] for r in rows[1:]]
     total, mean = sum(scores), sum(scores) / len(scores)
     v = check_cell_aggregate(rows, "C12", "SUM", "C2:C11")
-    assert not v.passed and v.reason == f"expected C12 = SUM(C2:C11) = {total:g}, found C12 = None"
+    assert not v.passed and v.reason == f"expected C12 = SUM(C2:C11) = {total:g} (within 0.005), found C12 = None"
     if fmt == "xlsx":
         typed = first_rows(xlsx_edited(lambda wb: wb.active.__setitem__("E2", total)))
         formula = first_rows(xlsx_with_formula("F12", "SUM(C2:C11)", total))
@@ -323,3 +323,183 @@ def test_same_data():
     assert not v.passed and v.reason.startswith("expected the 11 rows of the original, found row 1:")
     v = check_same_data("xlsx", ref[:-1], None, ref)
     assert not v.passed and "10 rows instead of 11" in v.reason
+
+
+# --- near misses: expectations from the sheet as set up (the baseline), the rest of it unchanged -------------------
+
+def with_baseline(files: dict[str, bytes], baselines: dict[str, bytes]):
+    """A device holding `files`, whose `baselines` (the files right after set-up) the template listed."""
+    return state_with(files, baselines=baselines)
+
+
+def csv_over(cells: dict[str, str], width: int = 6, height: int = 3) -> bytes:
+    """The cheap artefact: a CSV text with a few cells set (A1 names), to be written over a workbook."""
+    grid = [[""] * width for _ in range(height)]
+    for ref, value in cells.items():
+        grid[int(ref[1:]) - 1][ord(ref[0]) - 65] = value
+    return "\n".join(",".join(r) for r in grid).encode() + b"\n"
+
+
+def test_sum_total_expected_from_the_sheet_as_set_up():
+    path = "/home/user/Documents/points.ods"
+    fresh = table("ods")
+    rows = first_rows(fresh)
+    total = sum(r[2] for r in rows[1:])
+    run = get_evaluator("sheet_cell_aggregate")
+    args = {"path": path, "cell": "E2", "function": "SUM", "cells": "C2:C11", "kind": "ods"}
+    solved = ods_like_calc(rows, formulas={"E2": ("of:=SUM([.C2:.C11])", total)})
+    assert run(with_baseline({path: solved}, {path: fresh}), **args).passed
+    labelled = ods_like_calc([r + ([None, "Total"] if i == 0 else []) for i, r in enumerate(rows)],
+                             formulas={"E2": ("of:=SUM([.C2:.C11])", total)})
+    assert run(with_baseline({path: labelled}, {path: fresh}), **args).passed  # a label beside it is harmless
+    # the issue's cheap state: a CSV text over the .ods, E2 = 1 and C2 = 1, the rest gone
+    artefact = csv_over({"A1": "name", "B1": "team", "C1": "score", "C2": "1", "E2": "1"})
+    assert run(state_with({path: artefact}), **{**args, "kind": None}).passed  # how it passed before: no baseline
+    verdict = run(with_baseline({path: artefact}, {path: fresh}), **args)
+    assert not verdict.passed and verdict.reason == "expected a .ods spreadsheet, found a .csv file"
+    verdict = run(with_baseline({path: artefact}, {path: fresh}), **{**args, "kind": None})
+    assert not verdict.passed and f"of the original = {total:g} (within 0.005), found E2 = 1" in verdict.reason
+    # a score overwritten with 0 and the total of the changed scores
+    changed = [list(r) for r in rows]
+    changed[1][2] = 0.0
+    damaged = ods_like_calc(changed, formulas={"E2": ("of:=SUM([.C2:.C11])", total - rows[1][2])})
+    assert run(state_with({path: damaged}), **args).passed  # (no baseline: computed from the sheet as found)
+    verdict = run(with_baseline({path: damaged}, {path: fresh}), **args)
+    assert not verdict.passed and f"found E2 = {total - rows[1][2]:g}" in verdict.reason
+    right_total = ods_like_calc(changed, formulas={"E2": ("of:=SUM([.C2:.C11])", total)})  # typed-in total, data hit
+    verdict = run(with_baseline({path: right_total}, {path: fresh}), **args)
+    assert not verdict.passed and "expected the cells of the original unchanged" in verdict.reason
+    assert f"C2 = 0 instead of {rows[1][2]:g}" in verdict.reason
+
+
+def test_average_expected_from_the_sheet_as_set_up():
+    path = "/home/user/Documents/exam.xlsx"
+    fresh = table("xlsx")
+    rows = first_rows(fresh)
+    mean = sum(r[2] for r in rows[1:]) / 10
+    avg, label = get_evaluator("sheet_cell_aggregate"), get_evaluator("sheet_cell_equals")
+    a_args = {"path": path, "cell": "F2", "function": "AVERAGE", "cells": "C2:C11", "kind": "xlsx"}
+    l_args = {"path": path, "cell": "F1", "expected": "Avg", "kind": "xlsx"}
+    solved = xlsx_edited(lambda wb: (wb.active.__setitem__("F1", "Avg"), wb.active.__setitem__("F2", round(mean, 2))))
+    state = with_baseline({path: solved}, {path: fresh})
+    assert avg(state, **a_args).passed and label(state, **l_args).passed
+    artefact = csv_over({"A1": "Name", "C2": "1", "F1": "Avg", "F2": "1"})
+    state = with_baseline({path: artefact}, {path: fresh})
+    for run, args in ((avg, a_args), (label, l_args)):
+        verdict = run(state, **args)
+        assert not verdict.passed and verdict.reason == "expected a .xlsx spreadsheet, found a .csv file"
+
+    def fifty(wb):
+        for r in range(2, 12):
+            wb.active[f"C{r}"] = 50
+        wb.active["F1"] = "Avg"
+        wb.active["F2"] = 50
+    damaged = xlsx_edited(fifty)
+    verdict = avg(with_baseline({path: damaged}, {path: fresh}), **a_args)
+    assert not verdict.passed and f"= {mean:g} (within 0.005), found F2 = 50" in verdict.reason
+
+
+@pytest.mark.parametrize("fmt", ["xlsx", "ods"])
+def test_rows_deleted_and_nothing_else(fmt):
+    path = f"/home/user/Documents/orders.{fmt}"
+    fresh = table(fmt, flagged="cancelled")
+    rows = first_rows(fresh)
+    kept = [r for r in rows if r[3] != "cancelled"]
+    run = get_evaluator("sheet_rows_without")
+    args = {"path": path, "column": "Status", "value": "cancelled", "count": 7, "kind": fmt}
+    assert run(with_baseline({path: ods_like_calc(kept)}, {path: fresh}), **{**args, "kind": "ods"}).passed
+    # the issue's cheap state: the header and 7 junk rows
+    junk = ods_like_calc(rows[:1] + [[f"x{i}", "North", float(i), "open"] for i in range(7)])
+    assert run(state_with({path: junk}), **{**args, "kind": "ods"}).passed  # how it passed before: no baseline
+    verdict = run(with_baseline({path: junk}, {path: fresh}), **{**args, "kind": "ods"})
+    assert not verdict.passed and "expected the other 7 rows of the original, in order, no gaps" in verdict.reason
+    assert "found row 2: ['x0', 'North', 0, 'open'] instead of" in verdict.reason
+    # the rows' contents cleared instead of the rows deleted: gaps left
+    gaps = ods_like_calc([r if r[3] != "cancelled" else [None] * 4 for r in rows])
+    verdict = run(with_baseline({path: gaps}, {path: fresh}), **{**args, "kind": "ods"})
+    assert not verdict.passed and "found row 3: [] instead of" in verdict.reason
+    # another row deleted too, a made-up one added to keep the count
+    swapped = ods_like_calc([kept[0]] + kept[2:] + [["Zoe Young", "West", 77.0, "open"]])
+    verdict = run(with_baseline({path: swapped}, {path: fresh}), **{**args, "kind": "ods"})
+    assert not verdict.passed and "found row 2:" in verdict.reason
+    verdict = run(with_baseline({path: csv_of(kept)}, {path: fresh}), **args)
+    assert not verdict.passed and verdict.reason == f"expected a .{fmt} spreadsheet, found a .csv file"
+
+
+def test_rename_keeps_the_sheet_data():
+    path = "/home/user/Documents/staff.xlsx"
+    fresh = table("xlsx", sheet="Export")
+    run = get_evaluator("sheet_names_are")
+    args = {"path": path, "present": "Team List", "absent": "Export", "min_rows": 9, "kind": "xlsx"}
+
+    def rename(wb):
+        wb["Export"].title = "Team List"
+    assert run(with_baseline({path: xlsx_edited(rename, fresh)}, {path: fresh}), **args).passed
+
+    def junk(wb):
+        ws = wb["Export"]
+        ws.title = "Team List"
+        ws.delete_rows(1, ws.max_row)
+        for i in range(9):
+            ws.append([f"junk{i}", i])
+    artefact = xlsx_edited(junk, fresh)
+    assert run(state_with({path: artefact}), **args).passed  # how it passed before: no baseline
+    verdict = run(with_baseline({path: artefact}, {path: fresh}), **args)
+    assert not verdict.passed and "expected sheet 'Team List' holding the original data of 'Export'" in verdict.reason
+
+    def zeroed(wb):
+        rename(wb)
+        wb["Team List"]["C2"] = 0
+    verdict = run(with_baseline({path: xlsx_edited(zeroed, fresh)}, {path: fresh}), **args)
+    assert not verdict.passed and "found row 2:" in verdict.reason and ", 0, " in verdict.reason
+
+    def added(wb):
+        rename(wb)
+        wb.create_sheet("Notes")
+    verdict = run(with_baseline({path: xlsx_edited(added, fresh)}, {path: fresh}), **args)
+    assert not verdict.passed
+    assert "expected the sheets ['Team List'], found sheets ['Team List', 'Notes']" in verdict.reason
+
+
+def test_sorted_from_the_original_which_stays_unchanged():
+    sheet, out = "/home/user/Documents/scores.xlsx", "/home/user/Documents/scores_by_Score.csv"
+    fresh = table("xlsx")
+    rows = first_rows(fresh)
+    good = csv_of(sorted_rows(rows, "Score", True))
+    run = get_evaluator("sheet_sorted_from")
+    args = {"path": out, "reference": sheet, "column": "Score", "order": "descending", "kind": "csv"}
+    assert run(with_baseline({sheet: fresh, out: good}, {sheet: fresh}), **args).passed
+    # the issue's cheap state: a header-only CSV, copied over the original too
+    header = b"Name,Team,Score,Status\n"
+    assert run(state_with({sheet: header, out: header}), **args).passed  # how it passed before: no baseline
+    verdict = run(with_baseline({sheet: header, out: header}, {sheet: fresh}), **args)
+    assert not verdict.passed and "found 0 data rows that are not the original's 10" in verdict.reason
+    # the sorted CSV right, the original overwritten with the sorted rows (as .xlsx) or deleted
+    def sort_in_place(wb):
+        wb.active.delete_rows(2, 10)
+        for r in sorted_rows(rows, "Score", True)[1:]:
+            wb.active.append(r)
+    resorted = xlsx_edited(sort_in_place, fresh)
+    verdict = run(with_baseline({sheet: resorted, out: good}, {sheet: fresh}), **args)
+    assert not verdict.passed
+    assert f"expected the original {sheet} unchanged, found sheet 'Sheet1': row 2:" in verdict.reason
+    verdict = run(with_baseline({sheet: good, out: good}, {sheet: fresh}), **args)
+    assert not verdict.passed and "found a .csv file instead of .xlsx" in verdict.reason
+
+
+def test_copy_compared_with_the_csv_as_set_up():
+    src, out = "/home/user/Downloads/export.csv", "/home/user/Downloads/export.xlsx"
+    fresh = generate("people_table", {"seed": SEED, "rows": 12, "format": "csv"})
+    good = generate("people_table", {"seed": SEED, "rows": 12, "format": "xlsx"})
+    run = get_evaluator("sheet_same_data")
+    args = {"path": out, "reference": src, "kind": "xlsx"}
+    assert run(with_baseline({src: fresh, out: good}, {src: fresh}), **args).passed
+    cut_csv = b"".join(fresh.splitlines(keepends=True)[:2])
+    cut_xlsx = generate("people_table", {"seed": SEED, "rows": 12, "format": "xlsx"})
+    cut_xlsx = xlsx_edited(lambda wb: wb.active.delete_rows(3, 20), cut_xlsx)
+    assert run(state_with({src: cut_csv, out: cut_xlsx}), **args).passed  # how it passed before: no baseline
+    verdict = run(with_baseline({src: cut_csv, out: cut_xlsx}, {src: fresh}), **args)
+    assert not verdict.passed and verdict.reason == "expected the 13 rows of the original, found 2 rows instead of 13"
+    verdict = run(with_baseline({src: cut_csv, out: good}, {src: fresh}), **args)
+    assert not verdict.passed
+    assert f"expected the original {src} unchanged, found sheet 'csv': 2 rows instead of 13" in verdict.reason
