@@ -10,7 +10,7 @@ MARKERS ?=
 PYTEST_ARGS ?=
 STAMP := $(VENV)/.installed
 
-.PHONY: setup engine images host-packages test bench clean-devices
+.PHONY: setup engine images host-packages test test-android bench clean-devices
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -41,6 +41,12 @@ host-packages:
 ## test: the project's own tests, container tests included
 test: images host-packages
 	$(BIN)/pytest -p no:cacheprovider tests -n $(WORKERS) $(PYTEST_ARGS)
+
+## test-android: the Android library's quality gate on a live device (JARVIS_ANDROID_SERIAL=<serial>, or the
+## emulator image prepared by `JARVIS_ANDROID_DOWNLOAD=1 jarvis images build --only android`); skipped with the
+## reason where there is neither
+test-android: setup host-packages
+	$(BIN)/pytest -p no:cacheprovider tests/test_library_android.py -m android_live -rs $(PYTEST_ARGS)
 
 ## bench: run every task this machine's devices can run (AGENT=oracle by default; others are skipped with the
 ## reason) and write the tables and a report; MARKERS="ubuntu and atomic" narrows it

@@ -287,3 +287,12 @@ def test_cli_schema_of_dataset_files(capsys):
     assert main(["schema", "--kind", "dataset"]) == 0
     schema = json.loads(capsys.readouterr().out)
     assert "from" in schema["$defs"]["Edge"]["properties"]
+
+
+def test_every_template_of_the_benchmark_carries_near_miss_negatives():
+    """Issue 16: at least two negatives per template, an `artefact` and a wrong/partial/damage state."""
+    from jarvis_pytest.tasks.library import negative_problems
+
+    lib = load_library(Path(__file__).resolve().parents[1] / "tasks")
+    lacking = {t.id: negative_problems(t) for t in lib.templates if negative_problems(t) or len(t.negatives) < 2}
+    assert not lacking, lacking

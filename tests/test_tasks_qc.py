@@ -67,10 +67,13 @@ def test_qc_on_real_devices_finds_both_kinds_of_violation(device_images, tmp_pat
     out = proc.stdout
     assert proc.returncode == 1, out[-3000:] + proc.stderr[-2000:]
     rows = {line.split("|")[1].strip(): line for line in out.splitlines() if line.startswith("| ubuntu-qc-")}
-    assert len(rows) == 8, out[-3000:]
-    assert all("| fail | pass | ok |" in rows[f"ubuntu-qc-good[seed{i}]"] for i in (0, 1))
-    assert "| PASS | pass | VIOLATED | passes untouched" in rows["ubuntu-qc-already_solved[seed0]"]
-    assert "| fail | FAIL | VIOLATED | oracle fails: file_text_equals" in rows["ubuntu-qc-oracle_fails[seed0]"]
-    assert "| PASS | pass | VIOLATED | passes untouched: file_exists" in rows["ubuntu-qc-guard_holds[seed1]"]
-    assert "2/8 instances pass the quality gate" in out
-    assert (tmp_path / "qc" / "qc.md").read_text().count("VIOLATED") == 6
+    assert len(rows) == 10, out[-3000:]
+    assert all("| fail | 2/2 fail | pass | ok |" in rows[f"ubuntu-qc-good[seed{i}]"] for i in (0, 1))
+    assert "| PASS | " in rows["ubuntu-qc-already_solved[seed0]"] and "passes untouched" in rows["ubuntu-qc-already_solved[seed0]"]
+    assert "| FAIL | VIOLATED | oracle fails: file_text_equals" in rows["ubuntu-qc-oracle_fails[seed0]"]
+    assert "| PASS | " in rows["ubuntu-qc-guard_holds[seed1]"] and "passes untouched: file_exists" in rows["ubuntu-qc-guard_holds[seed1]"]
+    # a negative the evaluators accept is a violation, named with its note
+    weak = rows["ubuntu-qc-negative_passes[seed0]"]
+    assert "| fail | 2/2 PASS | pass | VIOLATED | negative 0 passes (artefact: an empty file where the copy belongs)" in weak
+    assert "2/10 instances pass the quality gate" in out
+    assert (tmp_path / "qc" / "qc.md").read_text().count("VIOLATED") == 8
