@@ -10,3 +10,4 @@ from jarvis_pytest.evaluators.registry import EVALUATORS, Verdict, evaluator, ge
 from jarvis_pytest.evaluators import browser, documents, files, images, media, presentations, settings, spreadsheets  # noqa: F401,E402,I001  (registers)
 from jarvis_pytest.evaluators import desktop  # noqa: F401,E402  (registers)
 from jarvis_pytest.evaluators import android  # noqa: F401,E402  (registers)
+from jarvis_pytest.evaluators import windows_text  # noqa: F401,E402  (registers)
