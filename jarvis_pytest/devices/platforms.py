@@ -54,8 +54,8 @@ class PlatformSpec:
         if not self.is_absolute(path) or ".." in path.replace("\\", "/").split("/"):
             return False
         norm = self.normalise(path)
-        return any(norm == self.normalise(r) or norm.startswith(self.normalise(r) + self.sep)
-                   for r in self.writable_roots)
+        roots = [self.normalise(r).rstrip(self.sep) for r in self.writable_roots]
+        return any(norm.rstrip(self.sep) == r or norm.startswith(r + self.sep) for r in roots)
 
     def mkdir_command(self, folder: str) -> str:
         if self.shell == "cmd":

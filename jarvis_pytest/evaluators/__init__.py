@@ -11,3 +11,4 @@ from jarvis_pytest.evaluators import browser, documents, files, images, media, p
 from jarvis_pytest.evaluators import desktop  # noqa: F401,E402  (registers)
 from jarvis_pytest.evaluators import android  # noqa: F401,E402  (registers)
 from jarvis_pytest.evaluators import windows_text  # noqa: F401,E402  (registers)
+from jarvis_pytest.evaluators import windows_registry  # noqa: F401,E402  (registers)
