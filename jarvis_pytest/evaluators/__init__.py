@@ -9,6 +9,7 @@ the subtask (devices, transfer drive, pulled files) and the subtask's rendered a
 from jarvis_pytest.evaluators.registry import EVALUATORS, Verdict, evaluator, get_evaluator  # noqa: F401
 from jarvis_pytest.evaluators import browser, documents, files, images, media, presentations, settings, spreadsheets  # noqa: F401,E402,I001  (registers)
 from jarvis_pytest.evaluators import desktop  # noqa: F401,E402  (registers)
-from jarvis_pytest.evaluators import android  # noqa: F401,E402  (registers)
-from jarvis_pytest.evaluators import windows_text  # noqa: F401,E402  (registers)
 from jarvis_pytest.evaluators import windows_registry  # noqa: F401,E402  (registers)
+from jarvis_pytest.evaluators import windows_text  # noqa: F401,E402  (registers)
+from jarvis_pytest.evaluators import windows_files  # noqa: F401,E402  (registers)
+from jarvis_pytest.evaluators import android  # noqa: F401,E402  (registers)
