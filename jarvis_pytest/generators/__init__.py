@@ -9,5 +9,5 @@ registers all of them; each topic module (`documents.py`, ...) registers its own
 
 from jarvis_pytest.generators.registry import GENERATORS, generate, generator  # noqa: F401
 from jarvis_pytest.generators import documents, images, media, presentations, spreadsheets, text  # noqa: F401,E402  (registers)
-from jarvis_pytest.generators import android  # noqa: F401,E402  (registers)
 from jarvis_pytest.generators import rtf, windows_text  # noqa: F401,E402  (registers)
+from jarvis_pytest.generators import android  # noqa: F401,E402  (registers)
