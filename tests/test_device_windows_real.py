@@ -59,23 +59,29 @@ def test_first_boot_scripts_install_python_and_the_server_and_start_them_at_logo
     for script in (install, start):
         assert b"\r\n" in script and b"\n" not in script.replace(b"\r\n", b"")  # cmd wants CRLF
     text = install.decode()
-    assert "python-embed.zip" in text and "winserver.zip" in text and r"C:\jarvis" in text
+    assert "python-embed.zip" in text and "server.zip" in text and r"C:\jarvis" in text
     assert "localport=5000" in text and r"CurrentVersion\Run" in text and "start.bat" in text
     assert "python313._pth" in text
     run = start.decode()
     assert "net use S: http://transfer:5244/" in run and "agentPassword" in run
-    assert r"python.exe -m winserver --port 5000" in run
+    assert r"python.exe -m jarvis_pytest.devices.windows.server --port 5000" in run
 
 
 def test_oem_bundle_carries_the_official_python_with_its_licence_and_the_server(tmp_path):
     folder = real.oem_bundle(tmp_path / "oem")
-    assert sorted(p.name for p in folder.iterdir()) == ["install.bat", "python-embed.zip", "start.bat", "winserver.zip"]
+    assert sorted(p.name for p in folder.iterdir()) == ["install.bat", "python-embed.zip", "server.zip", "start.bat"]
     py = zipfile.ZipFile(folder / "python-embed.zip")
     names = set(py.namelist())
     assert {"python.exe", "LICENSE.txt", "python313.zip", "_ctypes.pyd", "_socket.pyd"} <= names
     assert py.read("python.exe")[:2] == b"MZ"  # a Windows executable
-    server = zipfile.ZipFile(io.BytesIO((folder / "winserver.zip").read_bytes()))
-    assert "winserver/__main__.py" in server.namelist() and "winserver/app.py" in server.namelist()
+    server = zipfile.ZipFile(io.BytesIO((folder / "server.zip").read_bytes()))
+    names = server.namelist()
+    assert {"jarvis_pytest/devices/windows/server/__main__.py", "jarvis_pytest/devices/control_http.py",
+            "jarvis_pytest/devices/pyautogui_compat.py", "jarvis_pytest/devices/windows/__init__.py"} <= set(names)
+    # the package imports nothing beyond the standard library on the device: no pydantic, no httpx
+    for name in names:
+        text = server.read(name).decode()
+        assert "import pydantic" not in text and "from pydantic" not in text and "import httpx" not in text, name
 
 
 def test_a_template_for_the_real_backend_is_skipped_here_with_its_reason(tmp_path):

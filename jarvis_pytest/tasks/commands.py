@@ -4,15 +4,17 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
 from pydantic import TypeAdapter
 
+from jarvis_pytest.devices.platforms import PLATFORM_NAMES
 from jarvis_pytest.tasks import llm_steps
 from jarvis_pytest.tasks.compose import compose
 from jarvis_pytest.tasks.dataset import write_dataset
-from jarvis_pytest.tasks.library import load_library
+from jarvis_pytest.tasks.library import Library, load_library
 from jarvis_pytest.tasks.model import TEMPLATE_FILE_SCHEMA_TITLE, Dataset, TaskTemplate
 from jarvis_pytest.tasks.types import load_types
 
@@ -62,9 +64,21 @@ def _templates(args: argparse.Namespace) -> int:
 
 def _compose(args: argparse.Namespace) -> int:
     lib = load_library(args.library, types_path=args.types)
+    if not args.backend_specific:  # composed tasks any backend of each platform can run: comparable scores
+        left_out = [t.id for t in lib.templates if t.backends]
+        lib = Library.from_templates([t for t in lib.templates if not t.backends], lib.types, sources=lib.sources,
+                                     root=lib.root)
+        if left_out:
+            print(f"left out {len(left_out)} templates written for one backend only (e.g. {left_out[0]}); "
+                  "--backend-specific takes them in")
     meta = {"generator": "jarvis compose", "seed": args.seed, "count": args.count, "balanced": args.balanced,
             "category": args.category,
-            "max_subtasks": args.max_subtasks, "library_digest": lib.digest()}
+            "max_subtasks": args.max_subtasks, "library_digest": lib.digest(),
+            "command": "jarvis compose " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["compose"] else None,
+            "platforms": sorted({t.platform for t in lib.templates})}
+    absent = sorted(set(PLATFORM_NAMES) - set(meta["platforms"]))
+    if absent:
+        print(f"no templates for {', '.join(absent)}: composing from {', '.join(meta['platforms'])}")
     chat = None
     if args.rewrite or args.judge:
         config = llm_steps.endpoint(args.composer_base_url, args.composer_model, args.composer_api_key)
@@ -78,8 +92,34 @@ def _compose(args: argparse.Namespace) -> int:
         if chat is not None:
             chat.close()
     path = write_dataset(args.out, tasks, meta)
-    counts = {c: sum(t.category == c for t in tasks) for c in ("sw", "mi", "md")}
-    print(f"wrote {len(tasks)} tasks to {path} (" + ", ".join(f"{k.upper()} {v}" for k, v in counts.items()) + ")")
+    print(f"wrote {len(tasks)} tasks to {path}")
+    print(dataset_counts(tasks))
+    return 0
+
+
+def dataset_counts(tasks) -> str:
+    """A table: tasks per category and platform set, subtasks, transfers."""
+    from collections import Counter
+
+    rows = Counter((t.category, "+".join(sorted(set(t.devices)))) for t in tasks)
+    subtasks = sum(len(t.formatted_subtasks) for t in tasks)
+    transfers = sum(s.source_platform is not None for t in tasks for s in t.formatted_subtasks)
+    lines = ["| category | platforms | tasks |", "|---|---|---|"]
+    lines += [f"| {c.upper()} | {p} | {n} |" for (c, p), n in sorted(rows.items())]
+    per_cat = Counter(t.category for t in tasks)
+    lines.append(f"\n{len(tasks)} tasks (" + ", ".join(f"{c.upper()} {per_cat[c]}" for c in ("sw", "mi", "md"))
+                 + f"), {subtasks} subtasks, {transfers} of them file transfers")
+    return "\n".join(lines)
+
+
+def _datasets(args: argparse.Namespace) -> int:
+    from jarvis_pytest.tasks.dataset import load_dataset
+
+    for path in args.files or sorted(Path("tasks/composed").glob("*.json")):
+        ds = load_dataset(path)
+        print(f"{path}: {ds.meta.get('command') or 'composed by ' + str(ds.meta.get('generator', '?'))}, seed "
+              f"{ds.meta.get('seed')}, library {ds.meta.get('library_digest')}")
+        print(dataset_counts(ds.tasks))
     return 0
 
 
@@ -108,6 +148,10 @@ def register(sub: Any) -> None:
                    help="(always done now: every evaluator and generator name is checked when templates load)")
     p.set_defaults(func=_templates)
 
+    p = sub.add_parser("datasets", help="the composed datasets: how they were made, tasks per category and platforms")
+    p.add_argument("files", nargs="*", type=Path, help="dataset files (default tasks/composed/*.json)")
+    p.set_defaults(func=_datasets)
+
     p = sub.add_parser("compose", help="compose cross-device tasks from the template library (paper, Algorithm 1)")
     _library_args(p)
     p.add_argument("--seed", type=int, required=True, help="random seed (same seed and inputs: same file)")
@@ -115,6 +159,9 @@ def register(sub: Any) -> None:
     p.add_argument("--max-subtasks", type=int, default=4,
                    help="K: most subtasks per task, transfer subtasks included (default 4)")
     p.add_argument("--balanced", action="store_true", help="equal thirds of SW, MI and MD")
+    p.add_argument("--backend-specific", action="store_true", help="also draw templates written for one backend "
+                   "only (e.g. Paint, which needs a real Windows); by default composed tasks use templates every "
+                   "backend of their platform runs, so their scores compare across backends")
     p.add_argument("--category", choices=("sw", "mi", "md"), help="compose only tasks of this category "
                    "(e.g. sw for a library of one platform)")
     p.add_argument("--out", type=Path, required=True, help="dataset file to write")

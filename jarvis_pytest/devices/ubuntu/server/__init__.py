@@ -2,9 +2,11 @@
 
 It runs as the desktop user inside the X session (python3 from Debian, python-xlib, Pillow, pydantic from
 wheels) and exposes health, screenshot, accessibility tree, actions, files, commands and application launch
-over HTTP on the container's control port. Modules: `app` (HTTP routing, one action per request), `screen`
+over HTTP on the container's control port (the plumbing and the action dispatch every platform's server shares
+are `devices/control_http.py`; PYAUTOGUI scripts `devices/pyautogui_compat.py`). Modules: `app` (routes and
+endpoints), `screen`
 (capture with the cursor, PNG), `xshm` (MIT-SHM grabs), `xinput` (XTest input, exact Unicode typing),
-`pyautogui_compat` (PYAUTOGUI scripts), `a11y` (AT-SPI tree), `system` (commands, files, launch, readiness).
+`a11y` (AT-SPI tree), `system` (commands, files, launch, readiness).
 
 Endpoints (JSON unless said; errors are 4xx/5xx `{"error": "..."}`):
   GET  /health                     Health: `desktop` true once the desktop is shown and drawn
@@ -17,4 +19,8 @@ Endpoints (JSON unless said; errors are 4xx/5xx `{"error": "..."}`):
   POST /run       RunRequest                         RunResponse (returncode 124 on timeout)
   POST /launch    LaunchRequest                      LaunchResponse; started detached in the session, with
                                                      `window_wait` answered once its window shows
+  POST /open      OpenRequest                        LaunchResponse; the file's default application (xdg-open)
+  GET  /exists?path=/abs                             PathInfo
+  GET  /windows                                      WindowList (id, title, class, box, focused)
+  GET  /clipboard, PUT /clipboard   ClipboardText    the CLIPBOARD selection (xclip)
 """

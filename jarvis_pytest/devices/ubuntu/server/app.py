@@ -1,105 +1,48 @@
-"""HTTP routing of the control server. Every bad request gets a 4xx JSON `{"error": ...}`; nothing crashes it."""
+"""HTTP routing of the Ubuntu control server (the plumbing shared with every platform's server is in
+`devices/control_http.py`). Every bad request gets a 4xx JSON `{"error": ...}`; nothing crashes it."""
 
 from __future__ import annotations
 
-import json
-import threading
 import time
-from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any
-from urllib.parse import parse_qs, urlsplit
 
 from pydantic import BaseModel, ValidationError
 
 from jarvis_pytest.devices import actions as A
+from jarvis_pytest.devices.control_http import (ControlHandler, ControlServer, HttpError, Lazy, execute,
+                                                wait_for_window)
 from jarvis_pytest.devices.protocol import (A11yTree, ActionResult, ClipboardText, Health, LaunchRequest,
                                             LaunchResponse, OpenRequest, PathInfo, RunRequest, ScreenSize, WindowList)
 from jarvis_pytest.devices.ubuntu.server import system
 
-MAX_BODY = 512 * 1024 * 1024
 PLATFORM = "ubuntu"  # the platform this server runs on (`--platform`), named in refusals
 
 
-class HttpError(Exception):
-    def __init__(self, status: int, message: str):
-        super().__init__(message)
-        self.status = status
+def _screen():
+    from jarvis_pytest.devices.ubuntu.server.screen import Screen
+
+    return Screen()
 
 
-class Devices:
-    """The X connections, opened on first use (the display may come up after the server)."""
+def _keyboard():
+    from jarvis_pytest.devices.ubuntu.server.xinput import Keyboard
 
-    def __init__(self):
-        self._lock = threading.Lock()
-        self._screen = None
-        self._keyboard = None
-        self.ready = False
-
-    @property
-    def screen(self):
-        with self._lock:
-            if self._screen is None:
-                from jarvis_pytest.devices.ubuntu.server.screen import Screen
-
-                self._screen = Screen()
-            return self._screen
-
-    @property
-    def keyboard(self):
-        with self._lock:
-            if self._keyboard is None:
-                from jarvis_pytest.devices.ubuntu.server.xinput import Keyboard
-
-                self._keyboard = Keyboard()
-            return self._keyboard
+    return Keyboard()
 
 
-DEVICES = Devices()
+DEVICES = Lazy(screen=_screen, keyboard=_keyboard)  # the X connections, opened on first use
 
 
-def execute(action: A.Action) -> None:
-    """Carry out one action of the unified action space on this desktop."""
+def _pyautogui(script: str) -> None:
+    from jarvis_pytest.devices.pyautogui_compat import run_script
+
     kb = DEVICES.keyboard
-    t = action.type
-    if t == "MOVE_TO":
-        kb.move(action.x, action.y)
-    elif t == "CLICK":
-        kb.click(action.x, action.y, action.button, action.clicks)
-    elif t == "RIGHT_CLICK":
-        kb.click(action.x, action.y, "right", 1)
-    elif t == "DOUBLE_CLICK":
-        kb.click(action.x, action.y, "left", 2)
-    elif t in ("MOUSE_DOWN", "MOUSE_UP"):
-        kb.button(action.button, t == "MOUSE_DOWN")
-    elif t == "DRAG_TO":
-        kb.drag(action.start_x, action.start_y, action.x, action.y)
-    elif t == "SWIPE":
-        kb.drag(action.x, action.y, action.x + action.dx, action.y + action.dy, max(action.duration, 40))
-    elif t == "LONG_PRESS":
-        kb.long_press(action.x, action.y, action.duration)
-    elif t == "SCROLL":
-        kb.scroll(action.dx, action.dy, action.x, action.y)
-    elif t == "TYPING":
-        kb.type(action.text)
-    elif t in ("KEY_DOWN", "KEY_UP"):
-        kb.key(action.key, t == "KEY_DOWN")
-    elif t == "HOTKEY":
-        kb.hotkey(action.keys)
-    elif t == "WAIT":
-        time.sleep(action.seconds)
-    elif t in ("DONE", "FAIL"):
-        pass
-    elif t == "SYSTEM_BUTTON":
-        raise HttpError(400, f"SYSTEM_BUTTON (an Android system button) is not supported on {PLATFORM}")
-    elif t == "PYAUTOGUI":
-        from jarvis_pytest.devices.ubuntu.server.pyautogui_compat import run_script
 
-        try:
-            run_script(action.script, kb)
-        except (Exception, SystemExit) as exc:  # the script's own error is the agent's to see, not a server failure
-            raise HttpError(400, f"PYAUTOGUI script failed: {exc.__class__.__name__}: {exc}") from None
-    else:  # pragma: no cover - the union is closed
-        raise HttpError(400, f"unknown action type {t}")
+    def position() -> tuple[int, int]:
+        p = kb.root.query_pointer()
+        return p.root_x, p.root_y
+
+    run_script(script, kb, position, lambda: (kb.width, kb.height))
 
 
 def _validation_message(exc: ValidationError) -> str:
@@ -110,39 +53,11 @@ def _validation_message(exc: ValidationError) -> str:
     return "invalid request: " + "; ".join(parts)
 
 
-class Handler(BaseHTTPRequestHandler):
-    protocol_version = "HTTP/1.1"
+class Handler(ControlHandler):
     server_version = "jarvis-control/1"
-    disable_nagle_algorithm = True  # small answers must not wait for the client's delayed ACK (~40 ms)
-    wbufsize = 1 << 16  # headers and body leave in one write; the handler flushes after each request
 
-    def log_message(self, fmt: str, *args: Any) -> None:  # quiet; errors are answered, not logged
-        pass
-
-    # -- plumbing ---------------------------------------------------------------------------------------------
-    def _send(self, status: int, body: bytes, ctype: str) -> None:
-        self.send_response(status)
-        self.send_header("Content-Type", ctype)
-        self.send_header("Content-Length", str(len(body)))
-        if not self._body_read and self.headers.get("Content-Length", "0") != "0":
-            self.send_header("Connection", "close")  # the unread body would be taken for the next request
-        self.end_headers()
-        self.wfile.write(body)
-
-    def _json(self, status: int, data: Any) -> None:
-        if isinstance(data, BaseModel):
-            data = data.model_dump(mode="json", by_alias=True)
-        self._send(status, json.dumps(data).encode(), "application/json")
-
-    def _body(self) -> bytes:
-        try:
-            n = int(self.headers.get("Content-Length") or 0)
-        except ValueError:
-            raise HttpError(400, "Content-Length is not a number") from None
-        if not 0 <= n <= MAX_BODY:
-            raise HttpError(413, f"body of {n} bytes is not within the {MAX_BODY} byte limit")
-        self._body_read = True
-        return self.rfile.read(n) if n else b""
+    def encode(self, data: Any) -> Any:
+        return data.model_dump(mode="json", by_alias=True) if isinstance(data, BaseModel) else data
 
     def _model(self, cls: type[BaseModel]):
         try:
@@ -150,36 +65,11 @@ class Handler(BaseHTTPRequestHandler):
         except ValidationError as exc:
             raise HttpError(400, _validation_message(exc)) from None
 
-    def _query(self) -> dict[str, str]:
-        return {k: v[-1] for k, v in parse_qs(urlsplit(self.path).query).items()}
-
     def _path_arg(self) -> str:
         path = self._query().get("path", "")
         if not path.startswith("/"):
             raise HttpError(400, "query parameter `path` must be an absolute path")
         return path
-
-    def _dispatch(self, method: str) -> None:
-        route = urlsplit(self.path).path.rstrip("/") or "/"
-        handler = ROUTES.get((method, route))
-        self._body_read = False
-        try:
-            if handler is None:
-                raise HttpError(404 if route not in {r for _, r in ROUTES} else 405, f"no route {method} {route}")
-            handler(self)
-        except HttpError as exc:
-            self._json(exc.status, {"error": str(exc)})
-        except Exception as exc:  # a failure inside the device is reported, the server stays up
-            self._json(500, {"error": f"{exc.__class__.__name__}: {exc}"})
-
-    def do_GET(self) -> None:
-        self._dispatch("GET")
-
-    def do_POST(self) -> None:
-        self._dispatch("POST")
-
-    def do_PUT(self) -> None:
-        self._dispatch("PUT")
 
     # -- endpoints --------------------------------------------------------------------------------------------
     def health(self) -> None:
@@ -230,7 +120,7 @@ class Handler(BaseHTTPRequestHandler):
             raise HttpError(400, _validation_message(exc)) from None
         t0 = time.perf_counter()
         try:
-            execute(action)
+            execute(action.model_dump(), DEVICES.keyboard, PLATFORM, _pyautogui)
         except (InputError, KeyError) as exc:
             raise HttpError(400, str(exc)) from None
         self._json(200, ActionResult(ok=True, elapsed_ms=(time.perf_counter() - t0) * 1000))
@@ -268,11 +158,7 @@ class Handler(BaseHTTPRequestHandler):
                                  "e.g. mousepad, libreoffice, chromium, gimp, thunar)") from None
         except PermissionError:
             raise HttpError(400, f"{app!r} is not an executable") from None
-        deadline, shown = time.monotonic() + window_wait, False
-        while window_wait and not shown and time.monotonic() < deadline:
-            time.sleep(0.05)
-            now = DEVICES.screen.app_windows()
-            shown = any(before.get(wid) != title for wid, title in now.items())
+        shown = wait_for_window(DEVICES.screen.app_windows, before, window_wait)
         self._json(200, LaunchResponse(window=shown))
 
     def launch(self) -> None:
@@ -303,7 +189,7 @@ class Handler(BaseHTTPRequestHandler):
         self._json(200, {"ok": True})
 
 
-ROUTES = {
+Handler.routes = ROUTES = {
     ("GET", "/health"): Handler.health,
     ("GET", "/screen_size"): Handler.screen_size,
     ("GET", "/screenshot"): Handler.screenshot,
@@ -321,12 +207,7 @@ ROUTES = {
 }
 
 
-class Server(ThreadingHTTPServer):
-    daemon_threads = True
-    allow_reuse_address = True
-
-
 def serve(host: str, port: int, platform: str = "ubuntu") -> None:
     global PLATFORM
     PLATFORM = platform
-    Server((host, port), Handler).serve_forever()
+    ControlServer((host, port), Handler).serve_forever()

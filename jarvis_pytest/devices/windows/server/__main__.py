@@ -1,4 +1,5 @@
-"""`python.exe -m winserver --port 5000` (the package's name inside the device), or `--wait-desktop SECONDS`."""
+"""`python.exe -m jarvis_pytest.devices.windows.server --port 5000` (inside the device, from `C:\\jarvis`), or
+`--wait-desktop SECONDS`."""
 
 import sys
 

@@ -1,156 +1,56 @@
 """HTTP routing of the Windows control server: the Ubuntu server's API and JSON shapes (`devices/protocol.py`),
-validated by hand (`validate.py`). Every bad request gets a 4xx JSON `{"error": ...}`; nothing crashes it."""
+validated by hand (`validate.py`: no pydantic on the embeddable CPython); the plumbing shared with every
+platform's server is in `devices/control_http.py`. Every bad request gets a 4xx JSON `{"error": ...}`; nothing
+crashes it."""
 
 from __future__ import annotations
 
-import json
-import threading
 import time
-from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
-from typing import Any
-from urllib.parse import parse_qs, urlsplit
+
+from jarvis_pytest.devices.control_http import (ControlHandler, ControlServer, HttpError, Lazy, execute,
+                                                wait_for_window)
 
 from . import validate
 
-MAX_BODY = 512 * 1024 * 1024
 PLATFORM = "windows"
 
 
-class HttpError(Exception):
-    def __init__(self, status: int, message: str):
-        super().__init__(message)
-        self.status = status
+def _screen():
+    from .screen import Screen
+
+    return Screen()
 
 
-class Devices:
-    """Screen and input, made on first use; `ready` latches once the desktop was seen up."""
+def _input():
+    from .input import Input
 
-    def __init__(self):
-        self._lock = threading.Lock()
-        self._screen = None
-        self._input = None
-        self.ready = False
-
-    @property
-    def screen(self):
-        with self._lock:
-            if self._screen is None:
-                from .screen import Screen
-
-                self._screen = Screen()
-            return self._screen
-
-    @property
-    def input(self):
-        with self._lock:
-            if self._input is None:
-                from .input import Input
-
-                self._input = Input()
-            return self._input
+    return Input()
 
 
-DEVICES = Devices()
+DEVICES = Lazy(screen=_screen, input=_input)  # screen and input, made on first use
 
 
-def execute(a: dict) -> None:
-    """Carry out one validated action of the unified action space."""
+def _pyautogui(script: str) -> None:
+    from jarvis_pytest.devices.pyautogui_compat import run_script
+
     kb = DEVICES.input
-    t = a["type"]
-    if t == "MOVE_TO":
-        kb.move(a["x"], a["y"])
-    elif t == "CLICK":
-        kb.click(a["x"], a["y"], a["button"], a["clicks"])
-    elif t == "RIGHT_CLICK":
-        kb.click(a["x"], a["y"], "right", 1)
-    elif t == "DOUBLE_CLICK":
-        kb.click(a["x"], a["y"], "left", 2)
-    elif t in ("MOUSE_DOWN", "MOUSE_UP"):
-        kb.button(a["button"], t == "MOUSE_DOWN")
-    elif t == "DRAG_TO":
-        kb.drag(a["start_x"], a["start_y"], a["x"], a["y"])
-    elif t == "SWIPE":
-        kb.drag(a["x"], a["y"], a["x"] + a["dx"], a["y"] + a["dy"], max(a["duration"], 40))
-    elif t == "LONG_PRESS":
-        kb.long_press(a["x"], a["y"], a["duration"])
-    elif t == "SCROLL":
-        kb.scroll(a["dx"], a["dy"], a["x"], a["y"])
-    elif t == "TYPING":
-        kb.type(a["text"])
-    elif t in ("KEY_DOWN", "KEY_UP"):
-        kb.key(a["key"], t == "KEY_DOWN")
-    elif t == "HOTKEY":
-        kb.hotkey(a["keys"])
-    elif t == "WAIT":
-        time.sleep(a["seconds"])
-    elif t in ("DONE", "FAIL"):
-        pass
-    elif t == "SYSTEM_BUTTON":
-        raise HttpError(400, f"SYSTEM_BUTTON (an Android system button) is not supported on {PLATFORM}")
-    elif t == "PYAUTOGUI":
-        from .pyautogui_compat import run_script
-
-        try:
-            run_script(a["script"], kb, DEVICES.screen.size)
-        except (Exception, SystemExit) as exc:  # the script's own error is the agent's to see, not a server failure
-            raise HttpError(400, f"PYAUTOGUI script failed: {exc.__class__.__name__}: {exc}") from None
-    else:  # pragma: no cover - validate.ACTIONS is closed
-        raise HttpError(400, f"unknown action type {t}")
+    run_script(script, kb, kb.position, DEVICES.screen.size)
 
 
-def wait_for_window(before: dict[int, str], seconds: float) -> bool:
-    """Whether a new application window shows, or an existing one changes its title, within `seconds`."""
+def _app_windows() -> dict[int, str]:
     from .desktop import app_windows
 
-    deadline = time.monotonic() + seconds
-    while seconds and time.monotonic() < deadline:
-        time.sleep(0.05)
-        now = app_windows()
-        if any(before.get(hwnd) != title for hwnd, title in now.items()):
-            return True
-    return False
+    return app_windows()
 
 
-class Handler(BaseHTTPRequestHandler):
-    protocol_version = "HTTP/1.1"
+class Handler(ControlHandler):
     server_version = "jarvis-control-windows/1"
-    disable_nagle_algorithm = True  # small answers must not wait for the client's delayed ACK
-    wbufsize = 1 << 16
-
-    def log_message(self, fmt: str, *args: Any) -> None:  # quiet; errors are answered, not logged
-        pass
-
-    # -- plumbing ---------------------------------------------------------------------------------------------
-    def _send(self, status: int, body: bytes, ctype: str) -> None:
-        self.send_response(status)
-        self.send_header("Content-Type", ctype)
-        self.send_header("Content-Length", str(len(body)))
-        if not self._body_read and self.headers.get("Content-Length", "0") != "0":
-            self.send_header("Connection", "close")  # the unread body would be taken for the next request
-        self.end_headers()
-        self.wfile.write(body)
-
-    def _json(self, status: int, data: Any) -> None:
-        self._send(status, json.dumps(data).encode(), "application/json")
-
-    def _body(self) -> bytes:
-        try:
-            n = int(self.headers.get("Content-Length") or 0)
-        except ValueError:
-            raise HttpError(400, "Content-Length is not a number") from None
-        if not 0 <= n <= MAX_BODY:
-            raise HttpError(413, f"body of {n} bytes is not within the {MAX_BODY} byte limit")
-        self._body_read = True
-        return self.rfile.read(n) if n else b""
 
     def _request(self, name: str) -> dict:
         try:
             return validate.request(name, self._body())
         except validate.Invalid as exc:
             raise HttpError(400, f"invalid request: {exc}") from None
-
-    def _query(self) -> dict[str, str]:
-        return {k: v[-1] for k, v in parse_qs(urlsplit(self.path).query).items()}
 
     def _path_arg(self) -> str:
         from .system import PathError, windows_path
@@ -159,28 +59,6 @@ class Handler(BaseHTTPRequestHandler):
             return windows_path(self._query().get("path", ""))
         except PathError as exc:
             raise HttpError(400, f"query parameter `path`: {exc}") from None
-
-    def _dispatch(self, method: str) -> None:
-        route = urlsplit(self.path).path.rstrip("/") or "/"
-        handler = ROUTES.get((method, route))
-        self._body_read = False
-        try:
-            if handler is None:
-                raise HttpError(404 if route not in {r for _, r in ROUTES} else 405, f"no route {method} {route}")
-            handler(self)
-        except HttpError as exc:
-            self._json(exc.status, {"error": str(exc)})
-        except Exception as exc:  # a failure inside the device is reported, the server stays up
-            self._json(500, {"error": f"{exc.__class__.__name__}: {exc}"})
-
-    def do_GET(self) -> None:
-        self._dispatch("GET")
-
-    def do_POST(self) -> None:
-        self._dispatch("POST")
-
-    def do_PUT(self) -> None:
-        self._dispatch("PUT")
 
     # -- endpoints --------------------------------------------------------------------------------------------
     def health(self) -> None:
@@ -234,7 +112,7 @@ class Handler(BaseHTTPRequestHandler):
             raise HttpError(400, f"invalid request: {exc}") from None
         t0 = time.perf_counter()
         try:
-            execute(action)
+            execute(action, DEVICES.input, PLATFORM, _pyautogui)
         except InputError as exc:
             raise HttpError(400, str(exc)) from None
         self._json(200, {"ok": True, "error": None, "elapsed_ms": (time.perf_counter() - t0) * 1000})
@@ -292,7 +170,7 @@ class Handler(BaseHTTPRequestHandler):
                                  "notepad, wordpad, regedit, explorer, cmd, taskmgr, or a full path)") from None
         except OSError as exc:
             raise HttpError(400, f"cannot start {req['app']!r}: {exc}") from None
-        self._json(200, {"ok": True, "window": wait_for_window(before, req["window_wait"])})
+        self._json(200, {"ok": True, "window": wait_for_window(_app_windows, before, req["window_wait"])})
 
     def open(self) -> None:
         """Open a file or folder with its associated program and wait like `launch`."""
@@ -313,7 +191,7 @@ class Handler(BaseHTTPRequestHandler):
             open_path(path)
         except OSError as exc:
             raise HttpError(400, str(exc)) from None
-        self._json(200, {"ok": True, "window": wait_for_window(before, req["window_wait"])})
+        self._json(200, {"ok": True, "window": wait_for_window(_app_windows, before, req["window_wait"])})
 
     def windows(self) -> None:
         from .desktop import windows
@@ -332,7 +210,7 @@ class Handler(BaseHTTPRequestHandler):
         self._json(200, {"ok": True})
 
 
-ROUTES = {
+Handler.routes = ROUTES = {
     ("GET", "/health"): Handler.health,
     ("GET", "/screen_size"): Handler.screen_size,
     ("GET", "/screenshot"): Handler.screenshot,
@@ -350,13 +228,8 @@ ROUTES = {
 }
 
 
-class Server(ThreadingHTTPServer):
-    daemon_threads = True
-    allow_reuse_address = False  # on Windows SO_REUSEADDR would let a second server take the same port
-
-
 def serve(host: str, port: int) -> None:
-    Server((host, port), Handler).serve_forever()
+    ControlServer((host, port), Handler).serve_forever()
 
 
 def wait_desktop(seconds: float) -> bool:

@@ -66,9 +66,10 @@ def run(command: str, timeout: float) -> dict:
     124). Programs it leaves running in the background keep running (e.g. `start notepad`)."""
     job = _job()
     try:
-        # Without a console (DETACHED_PROCESS): under Wine a console costs a conhost, 0.3-1 s per command.
+        # A hidden console (CREATE_NO_WINDOW), not none: without one (DETACHED_PROCESS) every console program cmd
+        # starts (reg, hostname, python) gets a console of its own and its output never reaches our pipes.
         proc = subprocess.Popen(f'cmd.exe /d /s /c "{command}"', stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, creationflags=w.CREATE_SUSPENDED | w.DETACHED_PROCESS,
+                                stderr=subprocess.PIPE, creationflags=w.CREATE_SUSPENDED | w.CREATE_NO_WINDOW,
                                 cwd=os.path.expanduser("~"))
         handle = int(proc._handle)  # the process handle Popen holds
         w.AssignProcessToJobObject(job, handle)  # before it runs: whatever it starts belongs to the job too

@@ -1,8 +1,10 @@
-"""PYAUTOGUI actions: scripts written against pyautogui run on this device's SendInput input.
+"""PYAUTOGUI actions: scripts written against pyautogui run on a device's own input (XTest on Ubuntu, SendInput on
+Windows). Standard library only: it runs inside the devices.
 
-The calls agents use — moveTo, move/moveRel, click, doubleClick, tripleClick, rightClick, middleClick,
-mouseDown, mouseUp, dragTo, drag/dragRel, scroll, hscroll, write/typewrite, press, keyDown, keyUp, hotkey,
-position, size, sleep — with pyautogui's argument names and conventions (scroll > 0 is up). A script
+pyautogui itself is not installable offline (PyPI has only its source package, Debian none) nor on the
+embeddable Windows CPython, so this module offers the calls agents use — moveTo, move/moveRel, click, doubleClick, tripleClick, rightClick,
+middleClick, mouseDown, mouseUp, dragTo, drag/dragRel, scroll, hscroll, write/typewrite, press, keyDown, keyUp,
+hotkey, position, size, sleep — with pyautogui's argument names and conventions (scroll > 0 is up). A script
 `import pyautogui` gets this module. Anything else it calls is an AttributeError, reported to the agent.
 """
 
@@ -13,14 +15,16 @@ import time
 import types
 
 
-def _module(kb, size) -> types.ModuleType:
-    """A `pyautogui` module bound to the device's `input.Input` and screen size function."""
+
+def _opt(v):
+    return None if v is None else int(v)
+
+
+def _module(kb, position, size) -> types.ModuleType:
+    """A `pyautogui` module bound to a device's input object `kb` (move, click, button, drag, scroll, type, key,
+    hotkey), its pointer `position()` and screen `size()`."""
     m = types.ModuleType("pyautogui")
     m.FAILSAFE, m.PAUSE = False, 0.0
-    position = kb.position
-
-    def opt(v):
-        return None if v is None else int(v)
 
     def moveTo(x=None, y=None, duration=0.0, *a, **k):
         cx, cy = position()
@@ -31,7 +35,7 @@ def _module(kb, size) -> types.ModuleType:
         kb.move(cx + int(xOffset or 0), cy + int(yOffset or 0))
 
     def click(x=None, y=None, clicks=1, interval=0.0, button="left", *a, **k):
-        kb.click(opt(x), opt(y), button, int(clicks))
+        kb.click(_opt(x), _opt(y), button, int(clicks))
 
     def mouseDown(x=None, y=None, button="left", *a, **k):
         if x is not None and y is not None:
@@ -44,17 +48,18 @@ def _module(kb, size) -> types.ModuleType:
         kb.button(button, False)
 
     def dragTo(x=None, y=None, duration=0.2, button="left", *a, **k):
-        kb.drag(None, None, int(x), int(y), int(max(duration, 0.04) * 1000), button=button)
+        extra = {} if button == "left" else {"button": button}  # not every device drags with other buttons
+        kb.drag(None, None, int(x), int(y), int(max(duration, 0.04) * 1000), **extra)
 
     def drag(xOffset=0, yOffset=0, duration=0.2, *a, **k):
         cx, cy = position()
         dragTo(cx + int(xOffset), cy + int(yOffset), duration)
 
     def scroll(clicks, x=None, y=None, *a, **k):
-        kb.scroll(0, -int(clicks), opt(x), opt(y))
+        kb.scroll(0, -int(clicks), _opt(x), _opt(y))
 
     def hscroll(clicks, x=None, y=None, *a, **k):
-        kb.scroll(int(clicks), 0, opt(x), opt(y))
+        kb.scroll(int(clicks), 0, _opt(x), _opt(y))
 
     def write(message, interval=0.0, *a, **k):
         if isinstance(message, (list, tuple)):
@@ -86,8 +91,8 @@ def _module(kb, size) -> types.ModuleType:
     return m
 
 
-def run_script(script: str, kb, size) -> None:
+def run_script(script: str, kb, position, size) -> None:
     """Execute a pyautogui script on this device (its errors propagate to the caller)."""
-    module = _module(kb, size)
+    module = _module(kb, position, size)
     sys.modules["pyautogui"] = module
     exec(compile(script, "<PYAUTOGUI action>", "exec"), {"pyautogui": module, "time": time, "__name__": "__action__"})
