@@ -33,7 +33,7 @@ CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networki
                  "--no-first-run", "--disable-sync"]
 POINT_ACTIONS = ("CLICK", "RIGHT_CLICK", "DOUBLE_CLICK", "MOVE_TO", "LONG_PRESS")
 REPO = Path(__file__).resolve().parents[1]
-REAL_TASKS = ["-k", "(mousepad-write_note or mousepad-replace_text) and seed0 or sw-0000", "--instances", "1"]
+REAL_TASKS = ["-k", "(mousepad-write_note or mousepad-replace_text) and seed0 or sw-0013", "--instances", "1"]
 CLICKS = [{"type": "CLICK", "x": 960, "y": 540}, {"type": "TYPING", "text": "dashboard check"},
           {"type": "RIGHT_CLICK", "x": 300, "y": 200}, {"type": "HOTKEY", "keys": ["escape"]}]
 

@@ -18,7 +18,7 @@ from jarvis_pytest.report.rollup import load_results, rollup
 pytestmark = pytest.mark.containers
 REPO = Path(__file__).resolve().parents[1]
 ATOMIC = "mousepad-write_note or mousepad-replace_text or thunar-rename_file or terminal-brighten_image"
-SELECT = ["-k", f"({ATOMIC}) and seed0 or sw-0000 or sw-0005", "--instances", "1"]  # 4 atomic + 2 composed tasks
+SELECT = ["-k", f"({ATOMIC}) and seed0 or sw-0013 or sw-0016", "--instances", "1"]  # 4 atomic + 2 composed tasks
 
 
 def bench(run_dir: Path, *args: str, timeout: float = 600) -> subprocess.CompletedProcess:
@@ -63,15 +63,15 @@ def test_summary_is_the_same_without_xdist(oracle_run, tmp_path):
 
 def test_results_and_report_files(oracle_run):
     run_dir, _ = oracle_run
-    task = run_dir / "tasks" / "sw-0000"
+    task = run_dir / "tasks" / "sw-0013"
     lines = [json.loads(l) for l in (task / "traj.jsonl").read_text().splitlines()]
     assert lines and all((task / f).is_file() for l in lines for f in l["screenshots"].values())
     result = json.loads((task / "result.json").read_text())
     assert result["image_ids"]["ubuntu"].startswith("sha256:") and result["agent"] == {"name": "oracle"}
     assert [s["passed"] for s in result["subtasks"]] == [True, True]
     html = (run_dir / "report.html").read_text()
-    assert "Task success rates" in html and "sw-0000" in html
-    assert html.count("tasks/sw-0000/step_0000_ubuntu.png") >= 1 and "first screenshot" in html
+    assert "Task success rates" in html and "sw-0013" in html
+    assert html.count("tasks/sw-0013/step_0000_ubuntu.png") >= 1 and "first screenshot" in html
 
 
 def test_noop_fails_every_task_with_reasons(device_images, tmp_path):

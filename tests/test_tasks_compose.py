@@ -54,7 +54,10 @@ def test_cross_platform_edge_gets_a_transfer_and_values_propagate(library):
     assert [s.type for s in bright.config] == ["launch"]  # the step that provided `image` was dropped
     assert [e.model_dump(by_alias=True) for e in built.edges] == [
         {"from": (0, "photo"), "to": (1, "transferred_file")}, {"from": (1, "received_file"), "to": (2, "image")}]
-    assert transfer.evaluate[0].func == "file_exists" and transfer.evaluate[0].args == {"path": "/tmp/transfer/receipt.jpg"}
+    assert transfer.evaluate[0].func == "transfer_has_file" and transfer.evaluate[0].args == {"name": "receipt.jpg"}
+    assert transfer.evaluate[1].func == "transfer_arrived_unchanged" and transfer.evaluate[1].args == {
+        "source": "/sdcard/DCIM/Camera/receipt.jpg", "source_platform": "android",
+        "path": "/tmp/transfer/receipt.jpg", "folder": "/data"}
 
 
 def test_transfer_to_windows_uses_a_windows_path(library):

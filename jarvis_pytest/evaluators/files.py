@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import io
+import ntpath
 import posixpath
 import shlex
 import zipfile
@@ -270,6 +271,31 @@ def transfer_has_file(state: FinalState, name: str) -> Verdict:
     names = sorted(posixpath.basename(p) for p in state.transfer.walk())
     base = posixpath.basename(name)
     return Verdict.check(base in names, f"{base!r} on the transfer drive", repr(names[:20]))
+
+
+@evaluator("transfer_arrived_unchanged")
+def transfer_arrived_unchanged(state: FinalState, source: str, source_platform: str, path: str,
+                               folder: str = "/data") -> Verdict:
+    """The file `source` on `source_platform` went through the transfer drive (a file of its name in `folder`)
+    and arrived at `path` on this subtask's device byte for byte: the three copies have one SHA-256."""
+    want = f"{path} equal to {source} on the {source_platform} device, through the drive's {folder}"
+    if state.transfer is None:
+        return Verdict.check(False, want, "a task without a transfer drive")
+    name = ntpath.basename(source) if "\\" in source else posixpath.basename(source)
+    origin = state.pull(source, source_platform)
+    if origin is None:
+        return Verdict.check(False, want, f"no file at {source} on the {source_platform} device")
+    try:
+        on_drive = state.transfer.download(f"{folder.rstrip('/')}/{name}")
+    except FileNotFoundError:
+        return Verdict.check(False, want, f"no {name} in the drive's {folder}")
+    arrived = state.pull(path)
+    if arrived is None:
+        return Verdict.check(False, want, f"no file at {path}")
+    digests = {which: hashlib.sha256(data).hexdigest()[:16] for which, data in
+               (("source", origin), ("drive", on_drive), ("destination", arrived))}
+    same = len(set(digests.values())) == 1
+    return Verdict.check(same, want, "sha256 " + ", ".join(f"{k} {v}" for k, v in digests.items()))
 
 
 @evaluator("file_executable")

@@ -3,10 +3,10 @@ failures by hand; here every failed task gets one mode, the first that applies):
 
 - `step limit`: the agent ran out of steps (`end_reason` max_steps);
 - `gave up`: the agent declared FAIL;
+- `done early`: the agent declared DONE with a failed subtask on whose device it never acted;
 - `transfer failed`: a file-transfer subtask failed (the file never got through the drive, or arrived wrong);
 - `context lost`: a subtask fed by an upstream subtask failed although everything upstream of it passed — the
   agent did the first part and then did not carry its output on;
-- `done early`: the agent declared DONE with a failed subtask on whose device it never acted;
 - `subtask failed`: a single-device subtask failed otherwise.
 """
 
@@ -16,7 +16,7 @@ from typing import Iterable
 
 from jarvis_pytest.results.model import SubtaskVerdict
 
-MODES = ("step limit", "gave up", "transfer failed", "context lost", "done early", "subtask failed")
+MODES = ("step limit", "gave up", "done early", "transfer failed", "context lost", "subtask failed")
 
 
 def classify(verdicts: list[SubtaskVerdict], edges: Iterable[tuple[int, int]], end_reason: str,
@@ -30,6 +30,8 @@ def classify(verdicts: list[SubtaskVerdict], edges: Iterable[tuple[int, int]], e
         return "step limit"
     if end_reason == "fail":
         return "gave up"
+    if end_reason == "done" and any(v.platform not in acted_on for v in failed):
+        return "done early"
     if any(v.template.startswith("transfer-") for v in failed):
         return "transfer failed"
     upstream: dict[int, set[int]] = {}
@@ -38,6 +40,4 @@ def classify(verdicts: list[SubtaskVerdict], edges: Iterable[tuple[int, int]], e
     passed = {v.index for v in verdicts if v.passed}
     if any(v.index in upstream and upstream[v.index] <= passed for v in failed):
         return "context lost"
-    if end_reason == "done" and any(v.platform not in acted_on for v in failed):
-        return "done early"
     return "subtask failed"

@@ -3,8 +3,8 @@
 Its platform is the destination. Input ``transferred_file`` (type ``file``: any file) is the upstream output on
 the source platform; output ``received_file`` is the same file, under the same name, in the destination's
 transfer folder (`PlatformSpec.transfer_folder`), with the upstream file's own type. The agent moves it through
-the network drive (address and credentials are given to the agent separately). Evaluators: the file exists on
-the destination, and passed through the drive. The oracle solution uploads on the source and downloads on the
+the network drive (address and credentials are given to the agent separately). Evaluators: the drive saw the file,
+and the file on the destination is byte for byte the source's, as is the drive's copy (one SHA-256). The oracle solution uploads on the source and downloads on the
 destination with each device's own means (`PlatformSpec.drive_put_command`/`drive_get_command`: curl on Linux,
 a copy to the drive letter `S:` on Windows, where Wine has no curl.exe), against the copyparty flavour.
 """
@@ -49,8 +49,10 @@ def transfer_template(source: str, dest: str) -> TaskTemplate:
             same_type_as=TRANSFER_INPUT, content_checked=False,
             description="the same file in the destination's transfer folder")},
         config=[_mkdir(dest)],
-        evaluate=[EvaluatorSpec(func="file_exists", args={"path": f"{{{{{TRANSFER_OUTPUT}}}}}"}),
-                  EvaluatorSpec(func="transfer_has_file", args={"name": f"{{{{{TRANSFER_INPUT}.name}}}}"})],
+        evaluate=[EvaluatorSpec(func="transfer_has_file", args={"name": f"{{{{{TRANSFER_INPUT}.name}}}}"}),
+                  EvaluatorSpec(func="transfer_arrived_unchanged", args={
+                      "source": f"{{{{{TRANSFER_INPUT}}}}}", "source_platform": source,
+                      "path": f"{{{{{TRANSFER_OUTPUT}}}}}", "folder": TRANSFER_FOLDER})],
         solution=[SolutionStep(command=upload, platform=source, user=spec(source).desktop_user,
                                note="upload to the network drive"),
                   SolutionStep(command=download, user=spec(dest).desktop_user, note="download from the network drive")],
