@@ -231,13 +231,16 @@ class JarvisSession:
                 return stored
         ctx = self.ensure_context()
         ctx.prewarm_next = self.next_platforms
+        failure = None
         try:
             result = run_task(task, ctx)
         except (InfrastructureError, ConfigError) as exc:
             stored = read_result(self.run_dir, task.id)
             if stored is not None:
                 request.node.user_properties.append((PROPERTY, _compact(stored, self.run_dir)))
-            pytest.fail(f"infrastructure error ({exc.__class__.__name__}): {exc}", pytrace=False)
+            failure = f"infrastructure error ({exc.__class__.__name__}): {exc}"
+        if failure is not None:  # raised outside the handler: pytest prints it once, not chained to its cause
+            pytest.fail(failure, pytrace=False)
         request.node.user_properties.append((PROPERTY, _compact(result, self.run_dir)))
         if result.status == "timeout":
             pytest.fail(f"timeout: the task's time limit ({self.options.limits.task_timeout:g} s) passed after "
