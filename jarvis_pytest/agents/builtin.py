@@ -52,7 +52,17 @@ class OracleAgent:
         self.failed: AgentStep | None = None
 
     def reset(self, task: TaskContext) -> None:
-        self.queue = [(step.platform or sub.platform, step) for sub in task.subtasks for step in sub.solution]
+        # in a composed task every subtask's application is open: before a subtask's first GUI step its window
+        # (the template's `window`) is brought to the front
+        composed = len(task.subtasks) > 1
+        self.queue = []
+        for sub in task.subtasks:
+            focus = composed and bool(sub.window)
+            for step in sub.solution:
+                if focus and step.action is not None:
+                    self.queue.append((step.platform or sub.platform, ("focus", sub.window)))
+                    focus = False
+                self.queue.append((step.platform or sub.platform, step))
         self.last_platform = task.platforms[0] if task.platforms else None
         self.failed = None
 
@@ -66,6 +76,11 @@ class OracleAgent:
             return AgentStep(platform=self.last_platform, action=Done(), reasoning="oracle solution complete")
         platform, step = self.queue.pop(0)
         self.last_platform = platform
+        if isinstance(step, tuple):  # ("focus", title): bring the subtask's window to the front
+            shown = getattr(self.devices[platform], "focus", lambda title: False)(step[1])
+            return AgentStep(platform=platform, action=Wait(seconds=0), reasoning=f"oracle: bring the window "
+                             f"{step[1]!r} to the front ({'done' if shown else 'no such window'})",
+                             extra={"focus": {"title": step[1], "shown": shown}})
         if step.action is not None:
             return AgentStep(platform=platform, action=parse_action(step.action),
                              reasoning=step.note or "oracle solution step")

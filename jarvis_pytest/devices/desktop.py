@@ -9,9 +9,9 @@ import httpx
 
 from jarvis_pytest.devices.actions import Action
 from jarvis_pytest.devices.base import ActionOutcome, CommandResult, Observation
-from jarvis_pytest.devices.protocol import (A11yTree, ActionResult, ClipboardText, Health, LaunchRequest,
-                                            LaunchResponse, OpenRequest, PathInfo, RunRequest, RunResponse, ScreenSize,
-                                            WindowList)
+from jarvis_pytest.devices.protocol import (A11yTree, ActionResult, ClipboardText, FocusRequest, Health,
+                                            LaunchRequest, LaunchResponse, OpenRequest, PathInfo, RunRequest,
+                                            RunResponse, ScreenSize, WindowList)
 from jarvis_pytest.errors import InfrastructureError
 
 
@@ -123,6 +123,16 @@ class DesktopDevice:
         resp = self._request("POST", "/open", content=req.model_dump_json(), timeout=window_wait + 30,
                              headers={"Content-Type": "application/json"})
         return LaunchResponse.model_validate(self._ok(resp).json()).window
+
+    def focus(self, title: str, *, timeout: float = 5.0) -> bool:
+        """Bring the application window whose title contains `title` to the front; False when none showed within
+        `timeout` seconds."""
+        resp = self._request("POST", "/focus", content=FocusRequest(title=title, timeout=timeout).model_dump_json(),
+                             headers={"Content-Type": "application/json"}, timeout=timeout + 30)
+        if resp.status_code == 404:
+            return False
+        self._ok(resp)
+        return True
 
     def windows(self) -> list[dict]:
         """The visible top-level windows: id, title, class, box [x, y, w, h], focused."""

@@ -70,6 +70,13 @@ class OpenRequest(_Model):
     window_wait: float = Field(default=0.0, ge=0.0, le=120.0)
 
 
+class FocusRequest(_Model):
+    """POST /focus: bring the application window whose title contains `title` to the front."""
+
+    title: str = Field(min_length=1)
+    timeout: float = Field(default=5.0, ge=0.0, le=60.0, description="seconds to wait for such a window")
+
+
 class PathInfo(_Model):
     """GET /exists?path=: whether the path exists on the device, and what it is."""
 

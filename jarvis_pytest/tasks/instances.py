@@ -124,6 +124,7 @@ def materialise(template: TaskTemplate, values: Mapping[str, Scalar], *, fed: Ma
         source_platform=template.source_platform,
         max_steps=template.max_steps,
         backends=list(template.backends) or None,
+        window=render_text(template.window, every, where.at("window")) if template.window else None,
     )
 
 

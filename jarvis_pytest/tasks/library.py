@@ -202,6 +202,8 @@ def validate_template(tpl: TaskTemplate, types: TypeSystem, *, path: object = No
             _check_placeholders(text, slots, types, tpl, loc)
     for i, text in enumerate(tpl.baseline):
         _check_placeholders(text, slots, types, tpl, where.at(f"baseline[{i}]"))
+    if tpl.window:
+        _check_placeholders(tpl.window, slots, types, tpl, where.at("window"))
     for i, step in enumerate(tpl.config):
         if step.provides is not None and step.provides not in tpl.inputs:
             raise fail(f"config[{i}].provides", f"provides names no input slot ({step.provides!r})",

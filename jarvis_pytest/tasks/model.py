@@ -218,6 +218,10 @@ class TaskTemplate(_Strict):
         "one platform must not change the same setting")
     source_platform: Platform | None = Field(default=None, description="built-in transfer tasks only")
     max_steps: int | None = Field(default=None, ge=1)
+    window: str | None = Field(
+        default=None, description="text the title of the application's window shows once set up (templated, "
+        "e.g. {{doc.name}}); the oracle brings that window to the front before its GUI steps in a composed task, "
+        "where other subtasks' applications are open too")
     backends: list[str] = Field(
         default_factory=list, description="the device backends of its platform the template runs on (e.g. "
         "[\"kvm\"] for an application only a real Windows has); empty: every backend. Instances on another "
@@ -256,6 +260,7 @@ class Subtask(_Strict):
     source_platform: Platform | None = None
     max_steps: int | None = None
     backends: list[str] | None = Field(default=None, description="as the template's (absent: every backend)")
+    window: str | None = None
 
 
 class Edge(_Strict):

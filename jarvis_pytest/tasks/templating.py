@@ -22,7 +22,7 @@ from jarvis_pytest.errors import ConfigError
 Scalar = str | int | float
 PLACEHOLDER = re.compile(r"\{\{\s*([A-Za-z_][A-Za-z0-9_]*)(?:\.([A-Za-z_]+))?\s*\}\}")
 STRAY_BRACES = re.compile(r"\{\{|\}\}")
-PATH_ATTRS = ("dir", "ext", "name", "stem")
+PATH_ATTRS = ("dir", "ext", "folder", "name", "stem")
 WINDOWS_PATH = re.compile(r"^[A-Za-z]:\\|\\")
 
 
@@ -78,11 +78,13 @@ def walk_strings(obj: Any, where: Where) -> Iterator[tuple[str, Where]]:
 
 
 def path_part(value: Scalar, attr: str) -> str:
-    """One part (name, stem, ext, dir) of a path value."""
+    """One part (name, stem, ext, dir, or folder: the name of the folder that holds it) of a path value."""
     text = str(value)
     mod = ntpath if WINDOWS_PATH.search(text) else posixpath
     if attr == "dir":
         return mod.dirname(text)
+    if attr == "folder":
+        return mod.basename(mod.dirname(text))
     name = mod.basename(text)
     stem, ext = posixpath.splitext(name)
     return {"name": name, "stem": stem, "ext": ext}[attr]

@@ -11,8 +11,9 @@ from pydantic import BaseModel, ValidationError
 from jarvis_pytest.devices import actions as A
 from jarvis_pytest.devices.control_http import (ControlHandler, ControlServer, HttpError, Lazy, execute,
                                                 wait_for_window)
-from jarvis_pytest.devices.protocol import (A11yTree, ActionResult, ClipboardText, Health, LaunchRequest,
-                                            LaunchResponse, OpenRequest, PathInfo, RunRequest, ScreenSize, WindowList)
+from jarvis_pytest.devices.protocol import (A11yTree, ActionResult, ClipboardText, FocusRequest, Health,
+                                            LaunchRequest, LaunchResponse, OpenRequest, PathInfo, RunRequest,
+                                            ScreenSize, WindowList)
 from jarvis_pytest.devices.ubuntu.server import system
 
 PLATFORM = "ubuntu"  # the platform this server runs on (`--platform`), named in refusals
@@ -174,6 +175,20 @@ class Handler(ControlHandler):
             raise HttpError(404, f"no file or folder at {req.path}")
         self._start_and_wait("xdg-open", [req.path], req.window_wait)
 
+    def focus(self) -> None:
+        """Bring the application window whose title contains `title` to the front (waiting up to `timeout` s for it
+        to show); 404 when none does."""
+        req = self._model(FocusRequest)
+        deadline = time.monotonic() + req.timeout
+        while True:
+            found = DEVICES.screen.focus(req.title)
+            if found or time.monotonic() >= deadline:
+                break
+            time.sleep(0.1)
+        if not found:
+            raise HttpError(404, f"no window whose title contains {req.title!r}")
+        self._json(200, LaunchResponse(window=True))
+
     def exists(self) -> None:
         kind = system.path_kind(self._path_arg())
         self._json(200, PathInfo(exists=kind is not None, kind=kind))
@@ -200,6 +215,7 @@ Handler.routes = ROUTES = {
     ("POST", "/run"): Handler.run,
     ("POST", "/launch"): Handler.launch,
     ("POST", "/open"): Handler.open,
+    ("POST", "/focus"): Handler.focus,
     ("GET", "/exists"): Handler.exists,
     ("GET", "/windows"): Handler.windows,
     ("GET", "/clipboard"): Handler.get_clipboard,

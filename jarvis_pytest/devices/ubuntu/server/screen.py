@@ -138,6 +138,23 @@ class Screen:
 
         return sorted(self._viewable_clients(describe).values(), key=lambda w: w["id"])
 
+    def focus(self, title: str) -> bool:
+        """Activate (EWMH `_NET_ACTIVE_WINDOW`, as a pager does) the application window whose title contains
+        `title`, case-insensitive; False when none shows."""
+        want = title.casefold()
+        for wid, text in sorted(self.app_windows().items()):
+            if want in text.casefold():
+                from Xlib.protocol import event
+
+                with self.lock:
+                    window = self.display.create_resource_object("window", wid)
+                    atom = self.display.intern_atom("_NET_ACTIVE_WINDOW")
+                    ev = event.ClientMessage(window=window, client_type=atom, data=(32, [2, X.CurrentTime, 0, 0, 0]))
+                    self.root.send_event(ev, event_mask=X.SubstructureRedirectMask | X.SubstructureNotifyMask)
+                    self.display.flush()
+                return True
+        return False
+
     def painted(self, min_stddev: float = 8.0) -> bool:
         """Whether the screen shows something (a desktop that is up but not yet drawn is one flat colour)."""
         small = self._raw().reduce(8).convert("L")

@@ -172,6 +172,22 @@ class Handler(ControlHandler):
             raise HttpError(400, f"cannot start {req['app']!r}: {exc}") from None
         self._json(200, {"ok": True, "window": wait_for_window(_app_windows, before, req["window_wait"])})
 
+    def focus(self) -> None:
+        """Bring the application window whose title contains `title` to the front (waiting up to `timeout` s for it
+        to show); 404 when none does."""
+        from .desktop import focus
+
+        req = self._request("focus")
+        deadline = time.monotonic() + req["timeout"]
+        while True:
+            found = focus(req["title"])
+            if found or time.monotonic() >= deadline:
+                break
+            time.sleep(0.1)
+        if not found:
+            raise HttpError(404, f"no window whose title contains {req['title']!r}")
+        self._json(200, {"ok": True, "window": True, "title": found["title"]})
+
     def open(self) -> None:
         """Open a file or folder with its associated program and wait like `launch`."""
         import os
@@ -222,6 +238,7 @@ Handler.routes = ROUTES = {
     ("POST", "/run"): Handler.run,
     ("POST", "/launch"): Handler.launch,
     ("POST", "/open"): Handler.open,
+    ("POST", "/focus"): Handler.focus,
     ("GET", "/windows"): Handler.windows,
     ("GET", "/clipboard"): Handler.get_clipboard,
     ("PUT", "/clipboard"): Handler.put_clipboard,

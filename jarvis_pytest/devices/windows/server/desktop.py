@@ -37,6 +37,19 @@ def windows() -> list[dict]:
     return out
 
 
+def focus(title: str) -> dict | None:
+    """Bring to the front the visible application window whose title contains `title` (case-insensitive); the
+    window as {"id", "title"}, or None when none shows."""
+    want = title.casefold()
+    for hwnd, text in sorted(app_windows().items()):
+        if want in text.casefold():
+            if w.IsIconic(hwnd):
+                w.ShowWindow(hwnd, w.SW_RESTORE)
+            w.SetForegroundWindow(hwnd)
+            return {"id": hwnd, "title": text}
+    return None
+
+
 def app_windows() -> dict[int, str]:
     """The visible application windows, id → title (menus, tooltips and the shell do not count)."""
     found = {}

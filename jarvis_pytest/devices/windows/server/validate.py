@@ -55,6 +55,7 @@ REQUESTS: dict[str, dict[str, tuple]] = {
             "timeout": (_float(0, 3600, above=True), 60.0)},
     "launch": {"app": (("str", 1), REQUIRED), "args": (("strlist0",), []), "window_wait": (_float(0, 120), 0.0)},
     "open": {"path": (("str", 1), REQUIRED), "window_wait": (_float(0, 120), 0.0)},
+    "focus": {"title": (("str", 1), REQUIRED), "timeout": (_float(0, 60), 5.0)},
     "clipboard": {"text": (("str", 0), REQUIRED)},
 }
 
