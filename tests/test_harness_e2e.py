@@ -79,7 +79,8 @@ def test_noop_fails_every_task_with_reasons(device_images, tmp_path):
     assert proc.returncode == 1
     results, _ = load_results(tmp_path)
     assert len(results) == 6 and all(r.status == "failed" for r in results)
-    assert "file_not_contains: expected" in proc.stdout and "found no file" in proc.stdout
+    assert "file_text_replaced: expected" in proc.stdout and "found no file" in proc.stdout
+    assert "files_identical: expected an independent copy" in proc.stdout  # a composed task's subtask
     s = summary_of(tmp_path)
     assert s["atomic"]["ubuntu"]["k"] == 0 and s["composed"]["sw"]["ssr"]["rate"] == 0.0
 
@@ -142,6 +143,11 @@ def test_infrastructure_errors_are_errors_apart_and_rerun(device_images, tmp_pat
     proc = subprocess.run(cmd + ["--resume", str(run_dir)], cwd=REPO, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stdout[-3000:]
     assert summary_of(run_dir)["atomic"]["overall"]["k"] == 1
+    # now the task has a verdict: changing it again and resuming would reuse that verdict for another task
+    (library / "ubuntu" / "broken.json").write_text(json.dumps(dict(fixed, instruction="Create {{path}} now.")))
+    proc = subprocess.run(cmd + ["--resume", str(run_dir)], cwd=REPO, capture_output=True, text=True, timeout=300)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 4 and "tasks with a result changed" in out and "Traceback" not in out, out[-3000:]
 
 
 def test_step_timeout_and_module_class_agent(device_images, tmp_path):

@@ -222,10 +222,12 @@ def test_cli_compose_twice_is_byte_identical(tmp_path, capsys):
 def test_compose_output_does_not_depend_on_the_hash_seed(tmp_path):
     outputs = []
     for hash_seed in ("1", "12345"):
-        out = tmp_path / f"ds{hash_seed}.json"
+        out = tmp_path / hash_seed / "ds.json"  # the same command line in both runs: meta records it
+        out.parent.mkdir()
         subprocess.run([sys.executable, "-m", "jarvis_pytest.cli", "compose", "--library", str(LIBRARY), "--seed", "5",
-                        "--count", "6", "--max-subtasks", "5", "--out", str(out)], check=True, capture_output=True,
-                       env={**os.environ, "PYTHONHASHSEED": hash_seed})
+                        "--count", "6", "--max-subtasks", "5", "--out", "ds.json"], check=True, capture_output=True,
+                       cwd=out.parent, env={**os.environ, "PYTHONHASHSEED": hash_seed,
+                                            "PYTHONPATH": str(Path(__file__).resolve().parents[1])})
         outputs.append(out.read_bytes())
     assert outputs[0] == outputs[1]
 

@@ -91,13 +91,16 @@ def cut_default_route(container: Any) -> None:
     """Delete the device's default route inside its network namespace (from the host; needs root)."""
     if os.geteuid() != 0 or shutil.which("nsenter") is None:
         return  # the firewall rules alone close the network
+    container.reload()
     pid = (container.attrs.get("State") or {}).get("Pid")
     if not pid:
-        container.reload()
-        pid = container.attrs["State"]["Pid"]
+        return  # the device already exited: nothing can leave it, and the boot reports its exit and logs
     proc = subprocess.run(["nsenter", "-t", str(pid), "-n", "ip", "route", "del", "default"],
                           capture_output=True, text=True)
     if proc.returncode != 0 and "No such process" not in proc.stderr and "No such file" not in proc.stderr:
+        container.reload()
+        if not (container.attrs.get("State") or {}).get("Running"):
+            return  # it exited while the route was being cut; the boot reports why
         raise InfrastructureError(f"cannot remove the default route of {container.name}: {proc.stderr.strip()}")
 
 

@@ -151,11 +151,15 @@ class JarvisSession:
             raise ConfigError(f"the run was made with agent {used}, not {agent_config}", path=run_dir,
                               field="--resume", fix="resume with the same --agent, models and --max-steps, "
                               + fix_new)
+        # A changed task is refused only where its kept result would be reused as if it were the new task's;
+        # a task that errored, timed out or never ran is run again anyway, so fixing its setup is welcome.
         digests = run_state.read_plan(run_dir)["digests"]
-        changed = sorted(t.id for t in tasks if t.id in digests and digests[t.id] != run_state.task_digest(t))
+        changed = sorted(t.id for t in tasks if t.id in digests and digests[t.id] != run_state.task_digest(t)
+                         and _kept(read_result(run_dir, t.id), key))
         if changed:
             more = f" and {len(changed) - 3} more" if len(changed) > 3 else ""
-            raise ConfigError(f"tasks changed since the run was planned: {', '.join(changed[:3])}{more}",
+            raise ConfigError(f"tasks with a result changed since the run was planned: "
+                              f"{', '.join(changed[:3])}{more}",
                               path=run_dir, field="--resume", fix="resume with the same library, datasets and "
                               "options (--library, --dataset), " + fix_new)
 
@@ -226,7 +230,7 @@ class JarvisSession:
         if self.options.resume:
             stored = read_result(self.run_dir, task.id)
             key = agent_key(agent.config(), self.options.limits)
-            if stored is not None and stored.status in ("passed", "failed") and stored.agent_key == key:
+            if _kept(stored, key):
                 request.node.user_properties.append((PROPERTY, _compact(stored, self.run_dir) | {"resumed": True}))
                 return stored
         ctx = self.ensure_context()
@@ -384,6 +388,11 @@ def configure(config: pytest.Config) -> None:
 
     html.register(config, session)
 
+
+
+def _kept(stored: TaskResult | None, key: str) -> bool:
+    """Whether --resume reuses a stored result: a verdict (passed or failed) made by the same agent setup."""
+    return stored is not None and stored.status in ("passed", "failed") and stored.agent_key == key
 
 def _compact(result: TaskResult, run_dir: Path) -> dict[str, Any]:
     data = result.model_dump(mode="json", include={
