@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import io
 import json
-import threading
 import time
 from pathlib import Path
 
@@ -16,6 +15,7 @@ import pytest
 from filelock import FileLock
 from PIL import Image, ImageStat
 
+from device_checks import check_concurrent_requests, check_refusals_keep_the_server_usable
 from jarvis_pytest.devices import actions as A
 from jarvis_pytest.devices.probe import boot
 
@@ -370,28 +370,8 @@ def test_bad_actions_are_4xx_and_the_server_stays_up(booted, device, body, needl
     assert httpx.get(f"{url}/files", params={"path": "/no/such/file"}).status_code == 404
     assert httpx.post(f"{url}/run", json={"command": ""}).status_code == 400
     assert httpx.get(f"{url}/nowhere").status_code == 404
-    with httpx.Client(base_url=url) as keep_alive:  # a refused upload does not poison the connection
-        assert keep_alive.put("/files", params={"path": "x"}, content=b"GET / HTTP/1.1\r\n\r\n").status_code == 400
-        assert keep_alive.get("/health").json()["desktop"]
-    assert device.health().desktop
-    outcome = device.act(A.SystemButton(button="home"))
-    assert not outcome.ok and "SYSTEM_BUTTON" in outcome.error
+    check_refusals_keep_the_server_usable(device, url)
 
 
 def test_concurrent_requests(device):
-    errors: list[BaseException] = []
-
-    def worker(i: int) -> None:
-        try:
-            for j in range(5):
-                assert device.act(A.MoveTo(x=100 + i * 10 + j, y=100)).ok
-                assert len(device.screenshot()) > 1000
-        except BaseException as exc:  # noqa: BLE001 - reported below
-            errors.append(exc)
-
-    threads = [threading.Thread(target=worker, args=(i,)) for i in range(4)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
-    assert not errors and device.health().desktop
+    check_concurrent_requests(device, rounds=5)

@@ -8,7 +8,6 @@ Ubuntu device. One environment serves the module; everything created is removed 
 from __future__ import annotations
 
 import io
-import threading
 import time
 import uuid
 import zlib
@@ -19,6 +18,7 @@ import httpx
 import pytest
 from PIL import Image, ImageChops, ImageStat
 
+from device_checks import check_concurrent_requests, check_refusals_keep_the_server_usable
 from jarvis_pytest.devices import actions as A
 from jarvis_pytest.infra.cleanup import cleanup
 from jarvis_pytest.infra.containers import wait_until_ready
@@ -413,6 +413,26 @@ def test_open_a_file_with_its_program(device, http):
         device.run("taskkill /f /im notepad.exe")
 
 
+def test_focus_brings_the_named_application_to_the_front(device, http):
+    """Two programs show the same file (as in a composed task): a pattern with `*` names WordPad's window and not
+    Notepad's, a plain text any window showing it."""
+    path = DOCS + r"\shared note.txt"
+    device.upload(path, b"one file, two programs\r\n")
+    try:
+        assert device.launch("wordpad", path, window_wait=20)
+        assert device.launch("notepad", path, window_wait=20)
+        wait_for(lambda: any(w["focused"] and "Notepad" in w["title"] for w in windows(http)), what="Notepad in front")
+        assert device.focus("shared note.txt - *wordpad")
+        wait_for(lambda: [w["title"] for w in windows(http) if w["focused"]] == ["shared note.txt - Wine Wordpad"],
+                 what="WordPad in front")
+        assert device.focus("shared note.txt - Notepad")
+        wait_for(lambda: [w["title"] for w in windows(http) if w["focused"]] == ["shared note.txt - Notepad"],
+                 what="Notepad in front again")
+        assert not device.focus("no such window", timeout=0.5)
+    finally:
+        device.run("taskkill /f /im notepad.exe & taskkill /f /im wordpad.exe")
+
+
 # -- accessibility, bad input, concurrency ---------------------------------------------------------------------
 
 def test_accessibility_tree_limits(booted, device):
@@ -443,30 +463,11 @@ def test_bad_actions_are_4xx_and_the_server_stays_up(booted, device, body, needl
     assert httpx.post(f"{url}/launch", json={"app": "notepad", "window_wait": -1}).status_code == 400
     assert httpx.get(f"{url}/nowhere").status_code == 404
     assert httpx.post(f"{url}/windows").status_code == 405
-    with httpx.Client(base_url=url) as keep_alive:  # a refused upload does not poison the connection
-        assert keep_alive.put("/files", params={"path": "x"}, content=b"GET / HTTP/1.1\r\n\r\n").status_code == 400
-        assert keep_alive.get("/health").json()["desktop"]
-    outcome = device.act(A.SystemButton(button="home"))
-    assert not outcome.ok and "SYSTEM_BUTTON" in outcome.error
+    check_refusals_keep_the_server_usable(device, url)
 
 
 def test_concurrent_requests(device):
-    errors: list[BaseException] = []
-
-    def worker(i: int) -> None:
-        try:
-            for j in range(4):
-                assert device.act(A.MoveTo(x=100 + i * 10 + j, y=100)).ok
-                assert len(device.screenshot()) > 1000
-        except BaseException as exc:  # noqa: BLE001 - reported below
-            errors.append(exc)
-
-    threads = [threading.Thread(target=worker, args=(i,)) for i in range(4)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
-    assert not errors and device.health().desktop
+    check_concurrent_requests(device, rounds=4)
 
 
 # -- the transfer drive as S: --------------------------------------------------------------------------------------

@@ -60,6 +60,34 @@ def test_cross_platform_edge_gets_a_transfer_and_values_propagate(library):
         "path": "/tmp/transfer/receipt.jpg", "folder": "/data"}
 
 
+def test_a_received_file_edited_downstream_is_not_compared_with_the_source():
+    """Notepad converts the received file's line breaks on purpose: the transfer then compares the source with the
+    drive's copy only (the destination legitimately differs); a copy kept as it arrived is compared all three
+    ways."""
+    real = load_library(Path(__file__).resolve().parents[1] / "tasks")
+    run = node(real, "ubuntu-terminal-run_script")
+    edited = build(Draft((run, node(real, "windows-notepad-crlf_line_endings")),
+                         (Link(0, "result", 1, "text_file"),))).subtasks[1]
+    assert edited.evaluate[1].args.get("destination_changes_later") is True
+    assert "source_changes_later" not in edited.evaluate[1].args
+    kept = build(Draft((run, node(real, "windows-wordpad-save_rtf")),
+                       (Link(0, "result", 1, "text_file"),))).subtasks[1]
+    assert not {"source_changes_later", "destination_changes_later"} & set(kept.evaluate[1].args)
+
+
+def test_a_program_that_shows_an_upstream_file_is_opened_by_the_subtask_not_at_set_up():
+    """WordPad launched at set-up would show the text before Notepad's edit (or no file at all): the launch is
+    held back in `opens`, and the instruction asks to open the file instead of saying it is open."""
+    real = load_library(Path(__file__).resolve().parents[1] / "tasks")
+    edit, save = build(Draft((node(real, "windows-notepad-delete_lines"), node(real, "windows-wordpad-save_rtf")),
+                             (Link(0, "edited_file", 1, "text_file"),))).subtasks
+    path = edit.output["edited_file"].value
+    assert [s.type for s in edit.config][-1] == "launch" and edit.opens is None
+    assert "launch" not in [s.type for s in save.config]
+    assert [(o.type, o.app, o.args) for o in save.opens] == [("launch", "wordpad", [path])]
+    assert save.instruction.startswith(f"Open {path} in WordPad.") and "is open in" not in save.instruction
+
+
 def test_transfer_to_windows_uses_a_windows_path(library):
     draft = Draft((node(library, "ubuntu-calc-sort_column", spreadsheet="/home/user/Documents/grades.xlsx"),
                    node(library, "windows-calc-add_total_row")), (Link(0, "sorted_file", 1, "spreadsheet"),))

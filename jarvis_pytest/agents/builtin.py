@@ -53,10 +53,13 @@ class OracleAgent:
 
     def reset(self, task: TaskContext) -> None:
         # in a composed task every subtask's application is open: before a subtask's first GUI step its window
-        # (the template's `window`) is brought to the front
+        # (the template's `window`) is brought to the front; a file an upstream subtask made is opened first
+        # (`opens`: set-up held those steps back, the instruction asks for them)
         composed = len(task.subtasks) > 1
         self.queue = []
         for sub in task.subtasks:
+            for opener in sub.opens or []:
+                self.queue.append((opener.platform or sub.platform, ("open", opener)))
             focus = composed and bool(sub.window)
             for step in sub.solution:
                 if focus and step.action is not None:
@@ -76,6 +79,13 @@ class OracleAgent:
             return AgentStep(platform=self.last_platform, action=Done(), reasoning="oracle solution complete")
         platform, step = self.queue.pop(0)
         self.last_platform = platform
+        if isinstance(step, tuple) and step[0] == "open":  # a held-back set-up step: open the upstream's file
+            opener, device = step[1], self.devices[platform]
+            shown = device.launch(opener.app, *opener.args) if opener.type == "launch" else device.open(opener.path)
+            what = f"{opener.app} {' '.join(opener.args)}" if opener.type == "launch" else opener.path
+            return AgentStep(platform=platform, action=Wait(seconds=0), reasoning=f"oracle: open {what} "
+                             f"({'its window shows' if shown else 'no window yet'})",
+                             extra={"opened": {"what": what, "window": shown}})
         if isinstance(step, tuple):  # ("focus", title): bring the subtask's window to the front
             shown = getattr(self.devices[platform], "focus", lambda title: False)(step[1])
             return AgentStep(platform=platform, action=Wait(seconds=0), reasoning=f"oracle: bring the window "

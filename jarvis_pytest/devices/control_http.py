@@ -164,3 +164,15 @@ def wait_for_window(app_windows: Callable[[], dict[int, str]], before: dict[int,
         if any(before.get(wid) != title for wid, title in app_windows().items()):
             return True
     return False
+
+
+def title_matches(pattern: str, title: str) -> bool:
+    """Whether a window title shows `pattern`, case-insensitive: as a substring, or where the pattern has `*`
+    (any text) as a whole-title match — "notes.txt - *wordpad" names WordPad's window under Wine ("Wine Wordpad")
+    and on Windows ("WordPad") but not Notepad's window on the same file."""
+    want, text = pattern.casefold(), title.casefold()
+    if "*" not in want:
+        return want in text
+    import re
+
+    return re.fullmatch(".*".join(map(re.escape, want.split("*"))), text, re.S) is not None

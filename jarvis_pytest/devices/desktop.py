@@ -125,7 +125,8 @@ class DesktopDevice:
         return LaunchResponse.model_validate(self._ok(resp).json()).window
 
     def focus(self, title: str, *, timeout: float = 5.0) -> bool:
-        """Bring the application window whose title contains `title` to the front; False when none showed within
+        """Bring the application window whose title shows `title` (a substring, or a whole title with `*` for any
+        text, case-insensitive) to the front; False when none showed within
         `timeout` seconds."""
         resp = self._request("POST", "/focus", content=FocusRequest(title=title, timeout=timeout).model_dump_json(),
                              headers={"Content-Type": "application/json"}, timeout=timeout + 30)

@@ -38,10 +38,10 @@ def bookmarks(data: str) -> list[tuple[str, str]]:
 ROOT_ORDER = ("bookmark_bar", "other", "synced")  # the order Chromium encodes (and checksums) its roots in
 
 
-def bookmarks_checksum(data: dict) -> str:
+def bookmarks_checksum(data: dict, roots_order: tuple[str, ...] | list[str] = ROOT_ORDER) -> str:
     """The checksum Chromium's bookmark codec computes over a parsed `Bookmarks` file: MD5 over each node, depth
-    first through the roots in order — its id, its title as UTF-16LE, then "url" and the URL, or "folder" and its
-    children."""
+    first through the roots in order (`roots_order`, those present) — its id, its title as UTF-16LE, then "url"
+    and the URL, or "folder" and its children."""
     md5 = hashlib.md5()
 
     def walk(node: dict) -> None:
@@ -56,7 +56,7 @@ def bookmarks_checksum(data: dict) -> str:
                 walk(child)
 
     roots = data.get("roots") or {}
-    for key in ROOT_ORDER:
+    for key in roots_order:
         if isinstance(roots.get(key), dict):
             walk(roots[key])
     return md5.hexdigest()

@@ -275,27 +275,40 @@ def transfer_has_file(state: FinalState, name: str) -> Verdict:
 
 @evaluator("transfer_arrived_unchanged")
 def transfer_arrived_unchanged(state: FinalState, source: str, source_platform: str, path: str,
-                               folder: str = "/data") -> Verdict:
+                               folder: str = "/data", source_changes_later: bool = False,
+                               destination_changes_later: bool = False) -> Verdict:
     """The file `source` on `source_platform` went through the transfer drive (a file of its name in `folder`)
-    and arrived at `path` on this subtask's device byte for byte: the three copies have one SHA-256."""
+    and arrived at `path` on this subtask's device byte for byte: the three copies have one SHA-256. A side that
+    another subtask of the task edits or consumes on purpose (`*_changes_later`, set by composition) is not
+    compared; the drive's copy always is."""
     want = f"{path} equal to {source} on the {source_platform} device, through the drive's {folder}"
     if state.transfer is None:
         return Verdict.check(False, want, "a task without a transfer drive")
     name = ntpath.basename(source) if "\\" in source else posixpath.basename(source)
-    origin = state.pull(source, source_platform)
-    if origin is None:
-        return Verdict.check(False, want, f"no file at {source} on the {source_platform} device")
+    copies: list[tuple[str, bytes]] = []
+    if not source_changes_later:
+        origin = state.pull(source, source_platform)
+        if origin is None:
+            return Verdict.check(False, want, f"no file at {source} on the {source_platform} device")
+        copies.append(("source", origin))
     try:
-        on_drive = state.transfer.download(f"{folder.rstrip('/')}/{name}")
+        copies.append(("drive", state.transfer.download(f"{folder.rstrip('/')}/{name}")))
     except FileNotFoundError:
         return Verdict.check(False, want, f"no {name} in the drive's {folder}")
-    arrived = state.pull(path)
-    if arrived is None:
-        return Verdict.check(False, want, f"no file at {path}")
-    digests = {which: hashlib.sha256(data).hexdigest()[:16] for which, data in
-               (("source", origin), ("drive", on_drive), ("destination", arrived))}
-    same = len(set(digests.values())) == 1
-    return Verdict.check(same, want, "sha256 " + ", ".join(f"{k} {v}" for k, v in digests.items()))
+    if not destination_changes_later:
+        arrived = state.pull(path)
+        if arrived is None:
+            return Verdict.check(False, want, f"no file at {path}")
+        copies.append(("destination", arrived))
+    if len(copies) == 1:
+        return Verdict.check(True, want, f"{name} on the drive; source and destination not compared: other "
+                             "subtasks change both")
+    digests = {which: hashlib.sha256(data).hexdigest()[:16] for which, data in copies}
+    skipped = [side for side, flag in (("source", source_changes_later), ("destination", destination_changes_later))
+               if flag]
+    note = f" ({' and '.join(skipped)} not compared: another subtask changes it)" if skipped else ""
+    return Verdict.check(len(set(digests.values())) == 1, want,
+                         "sha256 " + ", ".join(f"{k} {v}" for k, v in digests.items()) + note)
 
 
 @evaluator("file_executable")

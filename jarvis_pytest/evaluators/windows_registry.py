@@ -728,22 +728,7 @@ def edge_checksums(data: dict) -> set[str]:
     roots = data.get("roots") or {}
     extra = [k for k in roots if k not in ROOT_ORDER and isinstance(roots[k], dict)]
     if extra:
-        md5 = hashlib.md5()
-
-        def walk(node: dict) -> None:
-            md5.update(str(node.get("id", "")).encode())
-            md5.update(str(node.get("name", "")).encode("utf-16-le"))
-            if node.get("type") == "url":
-                md5.update(b"url")
-                md5.update(str(node.get("url", "")).encode())
-            else:
-                md5.update(b"folder")
-                for child in node.get("children", []) or []:
-                    walk(child)
-
-        for key in [k for k in ROOT_ORDER if isinstance(roots.get(k), dict)] + extra:
-            walk(roots[key])
-        sums.add(md5.hexdigest())
+        sums.add(bookmarks_checksum(data, [*ROOT_ORDER, *extra]))
     return sums
 
 

@@ -29,7 +29,11 @@ def evaluate_subtasks(subtasks: Sequence[Subtask], devices: dict[str, Device], t
     """Verdicts per subtask. An evaluator that raises (other than an infrastructure error) fails with its error."""
     verdicts: list[SubtaskVerdict] = []
     for index, sub in enumerate(subtasks):
-        state = FinalState(platform=sub.platform, devices=devices, transfer=transfer, baselines=baselines or {})
+        # only the baselines this subtask declared: a path an upstream subtask feeds is not in its list, even
+        # when another subtask captured that path at set-up (the upstream subtask changes it on purpose)
+        own = {key: data for key, data in (baselines or {}).items()
+               if key[0] == sub.platform and key[1] in sub.baseline}
+        state = FinalState(platform=sub.platform, devices=devices, transfer=transfer, baselines=own)
         results: list[EvaluatorVerdict] = []
         for spec in sub.evaluate:
             func_name = spec.func

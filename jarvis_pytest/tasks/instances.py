@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import random
 import re
-from typing import TYPE_CHECKING, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
 from pydantic import TypeAdapter
 
@@ -98,7 +98,12 @@ def materialise(template: TaskTemplate, values: Mapping[str, Scalar], *, fed: Ma
         outputs[name] = BoundSlot(type=bound_type, value=value, content_checked=None if spec.content_checked else False)
     every = {**input_values, **{name: slot.value for name, slot in outputs.items()}}
     kept = [step for step in template.config if step.provides is None or step.provides not in fed]
-    config = _render_steps(kept, _STEP, every, where.at("config"))
+    held = [step for step in kept if _opens_fed(step, fed)]
+    config = _render_steps([step for step in kept if step not in held], _STEP, every, where.at("config"))
+    instruction = template.instruction
+    for name in sorted({name for step in held for name in fed if _mentions(step, name)}):
+        instruction = re.sub(r"\{\{" + name + r"\}\} is open in ([^.]+)\.", "Open {{" + name + r"}} in \1.",
+                             instruction)
     _check_upload_paths(config, template.platform, where)
     fed_values = {str(slot.value) for slot in fed.values()}
     baseline = [render_text(p, every, where.at(f"baseline[{i}]")) for i, p in enumerate(template.baseline)]
@@ -111,7 +116,7 @@ def materialise(template: TaskTemplate, values: Mapping[str, Scalar], *, fed: Ma
         template=template.id,
         platform=template.platform,
         app=template.app,
-        instruction=render_text(template.instruction, every, where.at("instruction")),
+        instruction=render_text(instruction, every, where.at("instruction")),
         input=inputs,
         output=outputs,
         config=config,
@@ -125,7 +130,20 @@ def materialise(template: TaskTemplate, values: Mapping[str, Scalar], *, fed: Ma
         max_steps=template.max_steps,
         backends=list(template.backends) or None,
         window=render_text(template.window, every, where.at("window")) if template.window else None,
+        opens=_render_steps(held, _STEP, every, where.at("config")) or None,
     )
+
+
+def _mentions(step: Any, name: str) -> bool:
+    """Whether a launch's arguments or an open's path name the slot `name` (`{{name}}`, `{{name.attr}}`)."""
+    texts = step.args if step.type == "launch" else [step.path]
+    return any(re.search(r"\{\{" + name + r"(\.\w+)?\}\}", text) for text in texts)
+
+
+def _opens_fed(step: Any, fed: Mapping[str, BoundSlot]) -> bool:
+    """A set-up step that opens a fed input in its application: held back, since at set-up the upstream subtask
+    has not made or changed that file yet."""
+    return step.type in ("launch", "open") and any(_mentions(step, name) for name in fed)
 
 
 def _check_upload_paths(config: list, platform: str, where: Where) -> None:

@@ -208,6 +208,7 @@ def validate_template(tpl: TaskTemplate, types: TypeSystem, *, path: object = No
         if step.provides is not None and step.provides not in tpl.inputs:
             raise fail(f"config[{i}].provides", f"provides names no input slot ({step.provides!r})",
                        f"use one of {sorted(tpl.inputs)}")
+    _check_fills_of_fed_folders(tpl, types, fail)
     for name in tpl.consumes:
         if name not in tpl.inputs:
             raise fail(f"consumes.{name}", f"consumes names no input slot ({name!r})", f"use one of {sorted(tpl.inputs)}")
@@ -230,6 +231,21 @@ def validate_template(tpl: TaskTemplate, types: TypeSystem, *, path: object = No
                 raise fail(f"config[{i}].fixture", problem, "put the file under fixtures/files/ and name it "
                            "relative to that folder")
     materialise(tpl, sample_inputs(tpl, random.Random(0)), source=path)
+
+
+def _check_fills_of_fed_folders(tpl: TaskTemplate, types: Any, fail: Any) -> None:
+    """Set-up must not write into a folder an upstream subtask may feed: in a composed task that folder is the
+    upstream's work, and files set-up put there would spoil it. A step that makes such a folder's content must
+    `provide` the slot (it is dropped when the slot is fed), or the slot must be `feedable: false`."""
+    import re
+
+    for i, step in enumerate(tpl.config):
+        text = step.path if step.type == "upload_file" else step.command if step.type == "command" else None
+        for name in re.findall(r"\{\{(\w+)\}\}[\\/]", text or ""):
+            slot = tpl.inputs.get(name)
+            if slot is not None and slot.feedable and step.provides != name and types.is_subtype(slot.type, "directory"):
+                raise fail(f"config[{i}]", f"set-up writes into folder {name!r}, which an upstream subtask may feed",
+                           f"mark the step \"provides\": \"{name}\", or set inputs.{name}.feedable to false")
 
 
 FIXTURE_FILES = Path(__file__).resolve().parents[2] / "fixtures" / "files"

@@ -220,8 +220,9 @@ class TaskTemplate(_Strict):
     max_steps: int | None = Field(default=None, ge=1)
     window: str | None = Field(
         default=None, description="text the title of the application's window shows once set up (templated, "
-        "e.g. {{doc.name}}); the oracle brings that window to the front before its GUI steps in a composed task, "
-        "where other subtasks' applications are open too")
+        "e.g. {{doc.name}}; case-insensitive; with `*` a whole title, `*` any text, e.g. \"{{doc.name}} - "
+        "*wordpad\" to tell WordPad from Notepad on the same file); the oracle brings that window to the front "
+        "before its GUI steps in a composed task, where other subtasks' applications are open too")
     backends: list[str] = Field(
         default_factory=list, description="the device backends of its platform the template runs on (e.g. "
         "[\"kvm\"] for an application only a real Windows has); empty: every backend. Instances on another "
@@ -261,6 +262,10 @@ class Subtask(_Strict):
     max_steps: int | None = None
     backends: list[str] | None = Field(default=None, description="as the template's (absent: every backend)")
     window: str | None = None
+    opens: list[Union[Launch, Open]] | None = Field(
+        default=None, description="set-up steps held back because they open a file an upstream subtask makes or "
+        "changes (at set-up it would show a missing or stale file): the instruction asks to open it, and the "
+        "oracle runs these steps first")
 
 
 class Edge(_Strict):

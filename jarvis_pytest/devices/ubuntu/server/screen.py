@@ -139,11 +139,12 @@ class Screen:
         return sorted(self._viewable_clients(describe).values(), key=lambda w: w["id"])
 
     def focus(self, title: str) -> bool:
-        """Activate (EWMH `_NET_ACTIVE_WINDOW`, as a pager does) the application window whose title contains
-        `title`, case-insensitive; False when none shows."""
-        want = title.casefold()
+        """Activate (EWMH `_NET_ACTIVE_WINDOW`, as a pager does) the application window whose title shows `title`
+        (`control_http.title_matches`); False when none shows."""
+        from jarvis_pytest.devices.control_http import title_matches
+
         for wid, text in sorted(self.app_windows().items()):
-            if want in text.casefold():
+            if title_matches(title, text):
                 from Xlib.protocol import event
 
                 with self.lock:

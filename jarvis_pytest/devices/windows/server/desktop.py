@@ -38,11 +38,12 @@ def windows() -> list[dict]:
 
 
 def focus(title: str) -> dict | None:
-    """Bring to the front the visible application window whose title contains `title` (case-insensitive); the
-    window as {"id", "title"}, or None when none shows."""
-    want = title.casefold()
+    """Bring to the front the visible application window whose title shows `title` (`control_http.title_matches`);
+    the window as {"id", "title"}, or None when none shows."""
+    from jarvis_pytest.devices.control_http import title_matches
+
     for hwnd, text in sorted(app_windows().items()):
-        if want in text.casefold():
+        if title_matches(title, text):
             if w.IsIconic(hwnd):
                 w.ShowWindow(hwnd, w.SW_RESTORE)
             w.SetForegroundWindow(hwnd)
