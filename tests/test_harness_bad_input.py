@@ -72,11 +72,19 @@ def case_changed_task(tmp: Path):
     from jarvis_pytest.plugin.runner import agent_key
     from jarvis_pytest.plugin.loop import LoopLimits
 
-    run = a_run(tmp / "run", agent_key=agent_key({"name": "noop"}, LoopLimits()))
+    from jarvis_pytest.results.model import TaskResult
+    from jarvis_pytest.results.writer import task_dir
+
+    key = agent_key({"name": "noop"}, LoopLimits())
+    run = a_run(tmp / "run", agent_key=key)
     tid = "ubuntu-thunar-rename_file[seed0]"
     (run / "plan.json").write_text(json.dumps({"tasks": [tid], "categories": {tid: "atomic"},
                                                 "digests": {tid: "0123456789abcdef"}}))
-    return ["--agent", "noop", "--resume", str(run)], ["--resume", "tasks changed", tid]
+    verdict = TaskResult(task_id=tid, category="atomic", platforms=["ubuntu"], instruction="x", status="failed",
+                         agent={"name": "noop"}, agent_key=key)  # a verdict --resume would keep
+    task_dir(run, tid).mkdir(parents=True)
+    (task_dir(run, tid) / "result.json").write_text(verdict.model_dump_json())
+    return ["--agent", "noop", "--resume", str(run)], ["--resume", "tasks with a result changed", tid]
 
 
 def case_unknown_evaluator(tmp: Path):

@@ -119,6 +119,7 @@ class Summary(BaseModel):
     by_devices: list[ByDevices] = Field(default_factory=list)  # composed tasks by number of devices
     failure_modes: dict[str, dict[str, int]] = Field(default_factory=dict)  # category → mode → failed tasks
     stand_ins: dict[str, list[str]] = Field(default_factory=dict)  # platform → stand-in backends that ran it
+    stand_in_categories: list[str] = Field(default_factory=list)  # atomic/sw/mi/md with a stand-in result counted
     tasks: int = 0  # tasks counted in the rates
     warnings: list[str] = Field(default_factory=list)  # inconsistent or unexpected results
     seed: int = 0
@@ -291,6 +292,7 @@ def rollup(results: Sequence[TaskResult], *, seed: int = 0, n_boot: int = 2000,
         errors=errors, unfinished=unfinished, timeouts=timeouts, not_run=not_run, skipped=skipped,
         by_devices=_by_devices(composed_all), failure_modes=_failure_modes(done),
         stand_ins=_stand_ins(everything),
+        stand_in_categories=sorted({r.category.lower() for r in everything if r.stand_ins}),
         tasks=len(everything), warnings=sorted(warnings),
         seed=seed, n_boot=n_boot, level=LEVEL)
 
@@ -345,6 +347,14 @@ def _star(s: Summary, platform: str) -> str:
     return "*" if platform in s.stand_ins else ""
 
 
+def _cat_star(s: Summary, category: str) -> str:
+    """* on a column of a category (sw, mi, md; "atomic" or "composed" for the overall columns) whose counted
+    results include one from a stand-in device."""
+    cats = s.stand_in_categories
+    hit = any(c in cats for c in COMPOSED) if category == "composed" else category in cats
+    return "*" if hit else ""
+
+
 def _stand_in_note(s: Summary) -> str:
     return "; ".join(f"{_LABEL.get(p, p)} ran on {', '.join(labels)}" for p, labels in s.stand_ins.items()) + "."
 
@@ -361,10 +371,11 @@ def render_markdown(s: Summary) -> str:
         out += [f"**Stand-in devices:** {_stand_in_note(s)} Cells marked * include results from a stand-in: "
                 "they are not comparable with results from the real platform.", ""]
     out += ["## Table 1a. Atomic tasks: TSR (%)", ""]
-    out += _md_table(["Model", *(_LABEL[p] + _star(s, p) for p in PLATFORMS), "Overall"],
+    out += _md_table(["Model", *(_LABEL[p] + _star(s, p) for p in PLATFORMS), "Overall" + _cat_star(s, "atomic")],
                      [[name, *(c.text() for c in atomic)]])
     out += ["## Table 1b. Multi-tasks: TSR and SSR (%)", ""]
-    out += _md_table(["Model", *(f"{_LABEL[c]} {m}" for c in (*COMPOSED, "overall") for m in ("TSR", "SSR"))],
+    out += _md_table(["Model", *(f"{_LABEL[c]} {m}{_cat_star(s, 'composed' if c == 'overall' else c)}"
+                                 for c in (*COMPOSED, "overall") for m in ("TSR", "SSR"))],
                      [[name, *(c.text() for c in multi)]])
     out += ["Row of the paper's main table (after Model and Size):", "", "```latex",
             " & ".join(_pct(c.rate) for c in [*atomic, *multi]) + r" \\", "```", ""]
@@ -418,8 +429,13 @@ def render_terminal(s: Summary) -> str:
     ssr = [s.composed[c].ssr.text() for c in (*COMPOSED, "overall")]
     w = max(12, *(len(x) for x in atomic + tsr + ssr)) + 2
     row = lambda label, cells: (f"{label:<8}" + "".join(f"{c:>{w}}" for c in cells)).rstrip()  # noqa: E731
-    lines = [row("atomic", ["Android", "Windows", "Ubuntu", "Overall"]), row("  TSR", atomic),
-             row("multi", ["SW", "MI", "MD", "Overall"]), row("  TSR", tsr), row("  SSR", ssr)]
+    lines = [row("atomic", [*(_LABEL[p] + _star(s, p) for p in PLATFORMS), "Overall" + _cat_star(s, "atomic")]),
+             row("  TSR", atomic),
+             row("multi", [*(_LABEL[c] + _cat_star(s, c) for c in COMPOSED), "Overall" + _cat_star(s, "composed")]),
+             row("  TSR", tsr), row("  SSR", ssr)]
+    if s.stand_ins:
+        lines.append(f"* includes results from a stand-in device ({_stand_in_note(s)[:-1]}): not comparable with "
+                     "the real platform")
     if s.by_subtasks:
         lines.append("by subtasks: " + "  ".join(f"{b.subtasks}: {_pct_counts(b.tsr, b.k, b.n)}"
                                                   for b in s.by_subtasks))
