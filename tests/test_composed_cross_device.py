@@ -22,11 +22,13 @@ DATASET = REPO / "tasks" / "composed" / "jarvis_150.json"
 
 
 def windows_to_ubuntu_task() -> str:
-    """The first MD task of the default dataset that goes from Windows to Ubuntu and runs here (no backend-specific
-    template)."""
+    """The first MD task of the default dataset that goes from Windows to Ubuntu, runs here (no backend-specific
+    template) and compares all three copies (no other subtask edits the source or the received file)."""
     for task in load_dataset(DATASET).tasks:
-        templates = [s.template for s in task.formatted_subtasks]
-        if task.category == "md" and "transfer-windows-to-ubuntu" in templates and set(task.devices) == {"ubuntu", "windows"}:
+        transfers = [s for s in task.formatted_subtasks if s.template == "transfer-windows-to-ubuntu"]
+        whole = transfers and all(not ({"source_changes_later", "destination_changes_later"} & set(e.args))
+                                  for s in transfers for e in s.evaluate)
+        if task.category == "md" and whole and set(task.devices) == {"ubuntu", "windows"}:
             return task.id
     raise AssertionError("the default dataset has no Windows → Ubuntu MD task")
 

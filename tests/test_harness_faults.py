@@ -84,8 +84,10 @@ def test_task_time_limit_is_a_timeout_counted_apart(device_images, tmp_path):
 
 def _start_run(run_dir: Path) -> subprocess.Popen:
     cmd = bench_cmd(run_dir, "-n", "2", "--agent", "oracle", "-k", "thunar or mousepad or terminal")
+    # Ctrl-C must reach it even where this test runs as a background job (a non-interactive shell starts those
+    # with SIGINT ignored, and Python then installs no KeyboardInterrupt handler): SIGINT back to its default
     return subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 def _finished(run_dir: Path) -> int:
