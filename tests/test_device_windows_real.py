@@ -15,6 +15,7 @@ import pytest
 
 from jarvis_pytest.devices.backend import backend_for
 from jarvis_pytest.devices.windows import real
+from jarvis_pytest.errors import InfrastructureError
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -108,3 +109,15 @@ def test_a_template_for_the_real_backend_is_skipped_here_with_its_reason(tmp_pat
     summary = json.loads((run / "summary.json").read_text())
     assert summary["skipped"]["atomic"] == 1 and summary["atomic"]["overall"]["n"] == 0
     assert "Skipped: no device here" in (run / "summary.md").read_text()
+
+
+def test_preparing_downloads_nothing_unless_asked(monkeypatch):
+    """`jarvis images build --only windows-real` pulls an image and downloads Windows: without the opt-in it stops
+    before any of that, saying how to allow it (no Docker call, no packet)."""
+    monkeypatch.delenv(real.DOWNLOAD_ENV, raising=False)
+    monkeypatch.setattr(real.os.path, "exists", lambda p: True)  # as on a machine with /dev/kvm
+    import jarvis_pytest.infra.engine as engine
+
+    monkeypatch.setattr(engine, "client", lambda **kw: pytest.fail("no Docker call without the opt-in"))
+    with pytest.raises(InfrastructureError, match=f"{real.DOWNLOAD_ENV}=1"):
+        real.prepare()

@@ -41,8 +41,10 @@ def unavailable() -> str | None:
     return None
 
 
-HOW_TO_RUN = ("on a machine with /dev/kvm and internet, `jarvis images build --only windows-real` once (installs "
-              "Windows and the control server into a golden disk), then `pytest --windows-backend kvm ...`")
+DOWNLOAD_ENV = "JARVIS_WINDOWS_DOWNLOAD"  # preparing pulls an image and downloads Windows: only when asked
+HOW_TO_RUN = (f"on a machine with /dev/kvm and internet, `{DOWNLOAD_ENV}=1 jarvis images build --only windows-real` "
+              "once (installs Windows and the control server into a golden disk), then "
+              "`pytest --windows-backend kvm ...`")
 
 
 def environment(first_boot: bool = False) -> dict[str, str]:
@@ -115,6 +117,9 @@ def prepare(timeout: float = 3 * 3600) -> str:
     """Install Windows with the control server once and keep its disk as the golden image (KVM and internet)."""
     if not os.path.exists("/dev/kvm"):
         raise InfrastructureError("windows-real needs /dev/kvm (hardware virtualisation); " + HOW_TO_RUN)
+    if os.environ.get(DOWNLOAD_ENV) != "1":  # nothing is pulled or probed unless the user says the network is there
+        raise InfrastructureError(f"preparing windows-real pulls {IMAGE} from a registry and downloads Windows on its "
+                                  f"first boot; set {DOWNLOAD_ENV}=1 to allow that: {HOW_TO_RUN}")
     from jarvis_pytest.devices.desktop import wait_ready
     from jarvis_pytest.infra.engine import client
 
