@@ -9,6 +9,7 @@ import os
 import shutil
 import subprocess
 import threading
+import time
 
 from . import win32 as w
 
@@ -61,6 +62,24 @@ def _job() -> int:
     return job
 
 
+ERROR_INTERNAL_ERROR = 1359  # Wine's CreateProcess now and then fails so while it makes a hidden console
+
+
+def _start_suspended(cmdline: str, attempts: int = 3) -> subprocess.Popen:
+    """Start `cmdline` suspended with a hidden console and piped output. A start that fails with Wine's transient
+    internal error is tried again (nothing ran, so nothing is done twice); any other failure is raised at once."""
+    for attempt in range(attempts):
+        try:
+            return subprocess.Popen(cmdline, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                    creationflags=w.CREATE_SUSPENDED | w.CREATE_NO_WINDOW,
+                                    cwd=os.path.expanduser("~"))
+        except OSError as exc:
+            if getattr(exc, "winerror", None) != ERROR_INTERNAL_ERROR or attempt == attempts - 1:
+                raise
+            time.sleep(0.2 * (attempt + 1))
+    raise AssertionError("unreachable")
+
+
 def run(command: str, timeout: float) -> dict:
     """Run `command` with `cmd /c`; on timeout the command and every process it started are killed (return code
     124). Programs it leaves running in the background keep running (e.g. `start notepad`)."""
@@ -68,9 +87,7 @@ def run(command: str, timeout: float) -> dict:
     try:
         # A hidden console (CREATE_NO_WINDOW), not none: without one (DETACHED_PROCESS) every console program cmd
         # starts (reg, hostname, python) gets a console of its own and its output never reaches our pipes.
-        proc = subprocess.Popen(f'cmd.exe /d /s /c "{command}"', stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, creationflags=w.CREATE_SUSPENDED | w.CREATE_NO_WINDOW,
-                                cwd=os.path.expanduser("~"))
+        proc = _start_suspended(f'cmd.exe /d /s /c "{command}"')
         handle = int(proc._handle)  # the process handle Popen holds
         w.AssignProcessToJobObject(job, handle)  # before it runs: whatever it starts belongs to the job too
         w.NtResumeProcess(handle)
