@@ -29,3 +29,12 @@ class ConfigError(JarvisError):
 
 class InfrastructureError(JarvisError):
     """The harness, not the agent, failed: a device did not boot, an endpoint stayed unreachable, ..."""
+
+
+class DeviceFault(InfrastructureError):
+    """A device failed to carry out a command although the command was fine (e.g. Wine could not start a program
+    that exists). Raised only where running the work again on fresh devices is safe: set-up, the oracle and the
+    quality gate's near-miss states."""
+
+
+DEVICE_FAULT_ATTEMPTS = 3  # work hit by a DeviceFault is done on fresh devices up to this many times in all

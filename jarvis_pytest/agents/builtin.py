@@ -10,7 +10,7 @@ from typing import Any
 from jarvis_pytest.agents.protocol import AgentStep, HistoryEntry, TaskContext
 from jarvis_pytest.devices.actions import Done, Fail, Wait, parse_action
 from jarvis_pytest.devices.base import Device, Observation
-from jarvis_pytest.errors import ConfigError
+from jarvis_pytest.errors import ConfigError, DeviceFault
 
 
 class NoopAgent:
@@ -96,6 +96,8 @@ class OracleAgent:
                              reasoning=step.note or "oracle solution step")
         t0 = time.monotonic()
         result = self.devices[platform].run(step.command, user=step.user, timeout=float(step.timeout or 120))
+        if result.fault:  # the device's fault, not the solution's: the task runs again on fresh devices
+            raise DeviceFault(f"an oracle command hit a device fault: {result.fault}: {step.command[:300]}")
         record = {"platform": platform, "command": step.command, "user": step.user,
                   "returncode": result.returncode, "seconds": round(time.monotonic() - t0, 3),
                   "output": (result.stdout[-500:] + result.stderr[-500:]).strip()}

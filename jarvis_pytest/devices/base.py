@@ -35,6 +35,7 @@ class CommandResult:
     stdout: str
     stderr: str
     extra: dict = field(default_factory=dict)
+    fault: str | None = None  # the device could not start a program that exists (RunResponse.fault)
 
 
 @runtime_checkable

@@ -100,7 +100,7 @@ class DesktopDevice:
         resp = self._request("POST", "/run", content=req.model_dump_json(), timeout=timeout + 10,
                              headers={"Content-Type": "application/json"})
         r = RunResponse.model_validate(self._ok(resp).json())
-        return CommandResult(returncode=r.returncode, stdout=r.stdout, stderr=r.stderr)
+        return CommandResult(returncode=r.returncode, stdout=r.stdout, stderr=r.stderr, fault=r.fault)
 
     def launch(self, app: str, *args: str, window_wait: float = LAUNCH_WINDOW_WAIT) -> bool:
         """Start `app` with `args`; return once the desktop shows a new application window or an existing one

@@ -45,6 +45,9 @@ class RunResponse(_Model):
     returncode: int
     stdout: str
     stderr: str
+    fault: str | None = Field(default=None, description="set when the device failed to start a program the command "
+                              "names although it exists (a fault of the device, not of the command): what ran is "
+                              "incomplete and says nothing about the command")
 
 
 class LaunchRequest(_Model):

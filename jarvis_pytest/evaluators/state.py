@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from jarvis_pytest.devices.base import Device
-from jarvis_pytest.errors import InfrastructureError
+from jarvis_pytest.errors import DEVICE_FAULT_ATTEMPTS, DeviceFault, InfrastructureError
 from jarvis_pytest.evaluators.registry import Verdict
 
 
@@ -32,8 +32,15 @@ class FinalState:
             raise InfrastructureError(f"evaluator needs the {name} device, which this task did not boot") from None
 
     def run(self, command: str, platform: str | None = None, user: str | None = None):
-        """Run a shell command on the device (as the desktop user unless `user` is given)."""
-        return self.device(platform).run(command, user=user)
+        """Run a shell command on the device (as the desktop user unless `user` is given). Evaluators only read,
+        so a command the device failed to carry out (`fault`) is simply run again; a device that keeps
+        failing raises DeviceFault (never a verdict on a half-run command)."""
+        for _ in range(DEVICE_FAULT_ATTEMPTS):
+            res = self.device(platform).run(command, user=user)
+            if not res.fault:
+                return res
+        raise DeviceFault(f"an evaluator's command hit a device fault {DEVICE_FAULT_ATTEMPTS} times: {res.fault}: "
+                          f"{command[:300]}")
 
     def exists(self, path: str, platform: str | None = None) -> bool:
         return self.device(platform).exists(path)

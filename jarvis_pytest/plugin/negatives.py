@@ -7,6 +7,7 @@ from typing import Any, Sequence
 
 from jarvis_pytest.devices.actions import parse_action
 from jarvis_pytest.devices.base import Device
+from jarvis_pytest.errors import DEVICE_FAULT_ATTEMPTS, DeviceFault
 from jarvis_pytest.plugin.evaluation import capture_baselines, evaluate_subtasks
 from jarvis_pytest.plugin.setup_steps import run_setup
 from jarvis_pytest.results.model import NegativeVerdict
@@ -19,6 +20,8 @@ def apply_steps(steps: Sequence[SolutionStep], devices: dict[str, Device], platf
         device = devices[step.platform or platform]
         if step.command is not None:
             res = device.run(step.command, user=step.user, timeout=float(step.timeout or 120))
+            if res.fault:
+                raise DeviceFault(f"a negative's command hit a device fault: {res.fault}: {step.command[:300]}")
             if res.returncode != 0:
                 return (f"command failed ({res.returncode}): {step.command[:200]}\n"
                         f"{res.stdout[-500:]}{res.stderr[-500:]}")
@@ -29,20 +32,34 @@ def apply_steps(steps: Sequence[SolutionStep], devices: dict[str, Device], platf
     return None
 
 
+def _negative_on_fresh_devices(subtasks: Sequence[Subtask], sub: Subtask, steps: Sequence[SolutionStep],
+                               platforms: tuple[str, ...], environments: Any) -> tuple[str | None, list]:
+    env = environments.acquire(platforms)
+    try:
+        run_setup(subtasks, env.devices)
+        baselines = capture_baselines(subtasks, env.devices)
+        error = apply_steps(steps, env.devices, sub.platform)
+        return error, ([] if error else evaluate_subtasks(subtasks, env.devices, env.transfer, baselines))
+    finally:
+        env.close()
+
+
 def run_negatives(subtasks: Sequence[Subtask], platforms: tuple[str, ...], environments: Any) -> list[NegativeVerdict]:
-    """Every negative of every subtask, each on a freshly booted and set-up environment (closed after)."""
+    """Every negative of every subtask, each on a freshly booted and set-up environment (closed after). A device
+    fault (not the negative's own failure) is tried again on fresh devices; the last one is raised."""
     out: list[NegativeVerdict] = []
     for s_index, sub in enumerate(subtasks):
         for n_index, neg in enumerate(sub.negatives or []):
-            env = environments.acquire(platforms)
-            try:
-                run_setup(subtasks, env.devices)
-                baselines = capture_baselines(subtasks, env.devices)
-                error = apply_steps(neg.steps, env.devices, sub.platform)
-                verdicts = [] if error else evaluate_subtasks(subtasks, env.devices, env.transfer, baselines)
-            finally:
-                env.close()
+            faults: list[str] = []
+            for attempt in range(1, DEVICE_FAULT_ATTEMPTS + 1):
+                try:
+                    error, verdicts = _negative_on_fresh_devices(subtasks, sub, neg.steps, platforms, environments)
+                    break
+                except DeviceFault as exc:
+                    if attempt == DEVICE_FAULT_ATTEMPTS:
+                        raise
+                    faults.append(str(exc))
             passed = error is None and all(v.passed for v in verdicts)
             out.append(NegativeVerdict(subtask=s_index, index=n_index, kind=neg.kind, note=neg.note,
-                                       passed=passed, error=error, verdicts=verdicts))
+                                       passed=passed, error=error, verdicts=verdicts, device_faults=faults))
     return out

@@ -13,7 +13,7 @@ from jarvis_pytest.agents.protocol import Agent, TaskContext
 from jarvis_pytest.devices.actions import PLATFORMS
 from jarvis_pytest.infra.transfer_server import (TRANSFER_ALIAS, TRANSFER_FOLDER, TRANSFER_PASSWORD, TRANSFER_PORT,
                                                  TRANSFER_USER)
-from jarvis_pytest.errors import ConfigError, InfrastructureError
+from jarvis_pytest.errors import DEVICE_FAULT_ATTEMPTS, ConfigError, DeviceFault, InfrastructureError
 from jarvis_pytest.plugin.evaluation import capture_baselines, evaluate_subtasks
 from jarvis_pytest.plugin import idle
 from jarvis_pytest.plugin.idle import idle_observation
@@ -69,21 +69,34 @@ def _passed(result: TaskResult) -> bool:
 
 def run_task(task: Task, ctx: RunContext) -> TaskResult:
     """Run `task` and return its result; raises on infrastructure errors after recording them in result.json
-    with status "error"."""
+    with status "error". A device fault (`DeviceFault`: in set-up, an oracle command or a near-miss state) runs
+    the task again on fresh devices, up to DEVICE_FAULT_ATTEMPTS times in all; the result lists the faults."""
+    faults: list[str] = []
+    for attempt in range(1, DEVICE_FAULT_ATTEMPTS + 1):
+        try:
+            return _run_once(task, ctx, faults)
+        except DeviceFault as exc:
+            if attempt == DEVICE_FAULT_ATTEMPTS:
+                raise
+            faults.append(str(exc))
+    raise AssertionError("unreachable")
+
+
+def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
     platforms = task_platforms(task)
     subtasks = task.formatted_subtasks
     config = ctx.agent_config
     result = TaskResult(task_id=task.id, category=task.category, platforms=list(platforms),
                         instruction=task.instruction, status="running", agent=config,
                         agent_key=agent_key(config, ctx.limits), egress=ctx.egress,
-                        edges=[(e.from_[0], e.to[0]) for e in task.edges])
+                        edges=[(e.from_[0], e.to[0]) for e in task.edges], device_faults=list(faults))
     recorder = TaskRecorder(ctx.run_dir, result)
     t_start = time.monotonic()
     env = None
     progress = LoopOutcome()
     try:
         env = ctx.environments.acquire(platforms)
-        if ctx.prewarm_next:  # only now: the devices booting ahead are the next task's, never this one's
+        if ctx.prewarm_next and not faults:  # only now: the devices booting ahead are the next task's, never this one's
             ctx.environments.prewarm(ctx.prewarm_next)
         result.image_ids = dict(env.image_ids)
         for platform, device in env.devices.items():  # the initial screen, for tasks that do not use the platform

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Sequence
 
 from jarvis_pytest.devices.base import Device
-from jarvis_pytest.errors import ConfigError, InfrastructureError
+from jarvis_pytest.errors import ConfigError, DeviceFault, InfrastructureError
 from jarvis_pytest.tasks.model import Command, Launch, Open, SetupStep, Sleep, Subtask, UploadFile
 
 FIXTURE_FILES = Path(__file__).resolve().parents[2] / "fixtures" / "files"
@@ -38,6 +38,8 @@ def _upload(device: Device, step: UploadFile) -> None:
 
 def _command(device: Device, step: Command) -> None:
     res = device.run(step.command, user=step.user, timeout=float(step.timeout or 120))
+    if res.fault:
+        raise DeviceFault(f"setup command hit a device fault: {res.fault}: {step.command[:300]}")
     if res.returncode != 0 and not step.allow_fail:
         raise InfrastructureError(f"setup command failed ({res.returncode}): {step.command}\n"
                                   f"{res.stdout[-1500:]}{res.stderr[-1500:]}")

@@ -52,6 +52,7 @@ class NegativeVerdict(BaseModel):
     passed: bool
     error: str | None = None  # the negative's steps could not be applied (a broken negative is a violation too)
     verdicts: list[SubtaskVerdict] = Field(default_factory=list)
+    device_faults: list[str] = Field(default_factory=list)  # faults of the devices, each tried again on fresh ones
 
 
 class StepRecord(BaseModel):
@@ -93,6 +94,8 @@ class TaskResult(BaseModel):
     edges: list[tuple[int, int]] = Field(default_factory=list)  # (upstream, downstream) subtask indices
     failure_mode: str | None = None  # why a failed task failed (report/failure_modes.py)
     durations: dict[str, float] = Field(default_factory=dict)  # boot, setup, agent, evaluate, total (seconds)
+    device_faults: list[str] = Field(default_factory=list)  # device faults (errors.DeviceFault) that made the task
+    # run again on fresh devices before this result; the verdict is the last run's
     usage: dict[str, int] = Field(default_factory=dict)
     image_ids: dict[str, str] = Field(default_factory=dict)
     first_screenshot: str | None = None

@@ -6,6 +6,7 @@ from __future__ import annotations
 import ctypes
 import ntpath
 import os
+import re
 import shutil
 import subprocess
 import threading
@@ -62,17 +63,15 @@ def _job() -> int:
     return job
 
 
-ERROR_INTERNAL_ERROR = 1359  # Wine's CreateProcess now and then fails so while it makes a hidden console
+ERROR_INTERNAL_ERROR = 1359  # what Wine's CreateProcess now and then answers (the new process died while it started)
 
 
-def _start_suspended(cmdline: str, attempts: int = 3) -> subprocess.Popen:
-    """Start `cmdline` suspended with a hidden console and piped output. A start that fails with Wine's transient
-    internal error is tried again (nothing ran, so nothing is done twice); any other failure is raised at once."""
+def _popen(args: str | list[str], attempts: int = 3, **kwargs) -> subprocess.Popen:
+    """`subprocess.Popen(args, **kwargs)`; a start that fails with Wine's transient internal error is tried again
+    (nothing ran, so nothing is done twice); any other failure is raised at once."""
     for attempt in range(attempts):
         try:
-            return subprocess.Popen(cmdline, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                    creationflags=w.CREATE_SUSPENDED | w.CREATE_NO_WINDOW,
-                                    cwd=os.path.expanduser("~"))
+            return subprocess.Popen(args, **kwargs)
         except OSError as exc:
             if getattr(exc, "winerror", None) != ERROR_INTERNAL_ERROR or attempt == attempts - 1:
                 raise
@@ -80,14 +79,48 @@ def _start_suspended(cmdline: str, attempts: int = 3) -> subprocess.Popen:
     raise AssertionError("unreachable")
 
 
+# What `cmd` prints when it cannot start a program: Wine's cmd says so also when the program exists and only its
+# start failed (the transient internal error above, inside cmd); Windows' own wording for a missing program.
+_NOT_STARTED = re.compile(r"Can't recognize '(?P<wine>.+?)' as an internal or external command"
+                          r"|'(?P<win>[^'\r\n]+)' is not recognized as an internal or external command")
+
+
+def _first_word(command: str) -> str:
+    command = command.strip()
+    if command.startswith('"'):
+        return command[1:].split('"', 1)[0]
+    return command.split(None, 1)[0] if command else ""
+
+
+def start_fault(stderr: str) -> str | None:
+    """Why the output says a program could not be started although it exists (a fault of the device), or None
+    when every program named was missing or started. Whatever the return code: Wine's cmd goes on after such a
+    failure as if the program had run and failed (`a && b && c` runs `c` when `b` could not start)."""
+    for match in _NOT_STARTED.finditer(stderr):
+        program = _first_word(match.group("wine") or match.group("win") or "")
+        where = resolve(program) if program else None
+        if where:
+            return f"{program} exists ({where}) but the device could not start it: the command did not all run"
+    return None
+
+
 def run(command: str, timeout: float) -> dict:
     """Run `command` with `cmd /c`; on timeout the command and every process it started are killed (return code
-    124). Programs it leaves running in the background keep running (e.g. `start notepad`)."""
+    124). Programs it leaves running in the background keep running (e.g. `start notepad`). `fault` says when
+    the device, not the command, failed: `cmd` itself or a program it names could not be started."""
     job = _job()
     try:
         # A hidden console (CREATE_NO_WINDOW), not none: without one (DETACHED_PROCESS) every console program cmd
         # starts (reg, hostname, python) gets a console of its own and its output never reaches our pipes.
-        proc = _start_suspended(f'cmd.exe /d /s /c "{command}"')
+        try:
+            proc = _popen(f'cmd.exe /d /s /c "{command}"', stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                          stderr=subprocess.PIPE, creationflags=w.CREATE_SUSPENDED | w.CREATE_NO_WINDOW,
+                          cwd=os.path.expanduser("~"))
+        except OSError as exc:
+            if getattr(exc, "winerror", None) != ERROR_INTERNAL_ERROR:
+                raise
+            return {"returncode": 9009, "stdout": "", "stderr": str(exc),
+                    "fault": f"cmd.exe could not be started ({exc}); nothing ran"}
         handle = int(proc._handle)  # the process handle Popen holds
         w.AssignProcessToJobObject(job, handle)  # before it runs: whatever it starts belongs to the job too
         w.NtResumeProcess(handle)
@@ -104,7 +137,8 @@ def run(command: str, timeout: float) -> dict:
             code, err = 124, err + f"timed out after {timeout:g} s".encode()
     finally:
         w.CloseHandle(job)
-    return {"returncode": code, "stdout": decode(out), "stderr": decode(err)}
+    stderr = decode(err)
+    return {"returncode": code, "stdout": decode(out), "stderr": stderr, "fault": start_fault(stderr)}
 
 
 def resolve(app: str) -> str | None:
@@ -147,7 +181,7 @@ def launch(app: str, args: list[str]) -> None:
         raise FileNotFoundError(app)
     # No standard handles given: a console program talks to its new console window (cmd stays open).
     flags = subprocess.CREATE_NEW_CONSOLE | subprocess.CREATE_NEW_PROCESS_GROUP
-    proc = subprocess.Popen([exe, *args], creationflags=flags, cwd=os.path.expanduser("~"))
+    proc = _popen([exe, *args], creationflags=flags, cwd=os.path.expanduser("~"))
     _reap(proc)
 
 
