@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from jarvis_pytest.report.rollup import load_results, rollup
+from jarvis_pytest.results.run_state import resource_id
 
 pytestmark = pytest.mark.containers
 REPO = Path(__file__).resolve().parents[1]
@@ -104,7 +105,7 @@ def test_a_killed_run_keeps_its_results_and_resumes(device_images, tmp_path):
             os.killpg(proc.pid, signal.SIGKILL)
     finished = {r.task_id: r.started for r in load_results(tmp_path)[0] if r.status == "passed"}
     assert 2 <= len(finished) < 6
-    subprocess.run([sys.executable, "-m", "jarvis_pytest.cli", "cleanup", "--run", tmp_path.name], check=True,
+    subprocess.run([sys.executable, "-m", "jarvis_pytest.cli", "cleanup", "--run", str(tmp_path)], check=True,
                    capture_output=True)
     resumed = bench(tmp_path, "--agent", "oracle", "--resume", str(tmp_path), "-n", "2")
     assert resumed.returncode == 0, resumed.stdout[-3000:]
@@ -173,7 +174,7 @@ def test_keep_devices_leaves_them_running_and_says_how_to_reach_them(device_imag
         assert "docker exec -it jarvis-" in proc.stderr + proc.stdout
         import docker
 
-        kept = docker.from_env().containers.list(filters={"label": f"org.jarvis.run={tmp_path.name}"})
+        kept = docker.from_env().containers.list(filters={"label": f"org.jarvis.run={resource_id(tmp_path)}"})
         assert sorted(c.labels["org.jarvis.role"] for c in kept) == ["device", "transfer"]
     finally:
-        subprocess.run([sys.executable, "-m", "jarvis_pytest.cli", "cleanup", "--run", tmp_path.name], check=True)
+        subprocess.run([sys.executable, "-m", "jarvis_pytest.cli", "cleanup", "--run", str(tmp_path)], check=True)

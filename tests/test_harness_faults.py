@@ -19,6 +19,7 @@ from jarvis_pytest.agents.planner import render_step
 from jarvis_pytest.dashboard.store import ResultsStore
 from jarvis_pytest.llm.fake_server import FakeChatServer, stall
 from jarvis_pytest.report.rollup import load_results
+from jarvis_pytest.results.run_state import resource_id
 
 pytestmark = pytest.mark.containers
 REPO = Path(__file__).resolve().parents[1]
@@ -99,7 +100,7 @@ def test_stopped_run_removes_its_devices_and_says_what_never_ran(device_images, 
     run_dir = tmp_path / f"run-{sig.name}"
     proc = _start_run(run_dir)
     try:
-        wait_for(lambda: _finished(run_dir) >= 2 and leftovers(run_dir.name)[0], 240, "two tasks and live devices")
+        wait_for(lambda: _finished(run_dir) >= 2 and leftovers(resource_id(run_dir))[0], 240, "two tasks and live devices")
         t0 = time.monotonic()
         if sig == signal.SIGINT:
             os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C in a terminal reaches the whole process group
@@ -110,7 +111,7 @@ def test_stopped_run_removes_its_devices_and_says_what_never_ran(device_images, 
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
-    containers, networks = leftovers(run_dir.name)
+    containers, networks = leftovers(resource_id(run_dir))
     assert not containers and not networks, (containers, networks, out[-3000:])
     meta = json.loads((run_dir / "run.json").read_text())
     assert meta["state"] == "interrupted", out[-2000:]
@@ -128,7 +129,7 @@ def test_killed_run_is_interrupted_and_the_next_run_removes_its_leftovers(device
     run_dir = tmp_path / "killed"
     proc = _start_run(run_dir)
     try:
-        wait_for(lambda: _finished(run_dir) >= 1 and leftovers(run_dir.name)[0], 240, "a task and live devices")
+        wait_for(lambda: _finished(run_dir) >= 1 and leftovers(resource_id(run_dir))[0], 240, "a task and live devices")
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait(timeout=30)
     finally:
@@ -142,7 +143,7 @@ def test_killed_run_is_interrupted_and_the_next_run_removes_its_leftovers(device
                                     "-k", "thunar-rename_file"),
                           cwd=REPO, capture_output=True, text=True, timeout=600)
     out = proc.stdout + proc.stderr
-    containers, networks = leftovers(run_dir.name)
+    containers, networks = leftovers(resource_id(run_dir))
     assert not containers and not networks, out[-3000:]
     assert "removed what killed runs left" in out or before == 0, out[-3000:]
     meta = json.loads((run_dir / "run.json").read_text())

@@ -46,8 +46,10 @@ def _remove(resource: Any, kind: str, problems: list[str]) -> bool:
     return False
 
 
-def cleanup(run_id: str | None = None, everything: bool = False, orphans_only: bool | None = None) -> dict[str, int]:
-    """Remove the resources of run `run_id`, of every run (`everything`), or (neither) the orphans of every run.
+def cleanup(run_id: str | None = None, everything: bool = False, orphans_only: bool | None = None,
+            host: str | None = None) -> dict[str, int]:
+    """Remove the resources of run `run_id`, of every run (`everything`), or (neither) the orphans of every run,
+    on the engine at `host` (default: the local one; every engine of a run: `engines.cleanup_everywhere`).
 
     `orphans_only=True` narrows a selection to orphans. Returns counts per kind; raises InfrastructureError
     naming what could not be removed.
@@ -56,7 +58,7 @@ def cleanup(run_id: str | None = None, everything: bool = False, orphans_only: b
 
     if orphans_only is None:
         orphans_only = not run_id and not everything
-    docker = client()
+    docker = client(host=host)
     label = f"{LABEL_RUN}={run_id}" if run_id else LABEL_RUN
     counts = {"containers": 0, "networks": 0, "volumes": 0}
     problems: list[str] = []
@@ -77,6 +79,9 @@ def cleanup(run_id: str | None = None, everything: bool = False, orphans_only: b
                 continue
             if _remove(resource, kind, problems):
                 counts[kind] += 1
+    from jarvis_pytest.infra.egress import remove_stale_within_rules
+
+    remove_stale_within_rules()  # the firewall rules of the task networks just removed (or removed before)
     if problems:
         raise InfrastructureError("could not remove " + "; ".join(problems) + " (is another run still using them? "
                                   "`docker ps -a --filter label=org.jarvis.run` shows what is left)")

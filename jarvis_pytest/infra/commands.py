@@ -26,11 +26,24 @@ def _images_list(args) -> int:
 
 
 def _cleanup(args) -> int:
-    from jarvis_pytest.infra.cleanup import cleanup
+    from pathlib import Path
 
-    counts = cleanup(args.run, everything=args.all)
+    from jarvis_pytest.infra import engines
+    from jarvis_pytest.plugin.options import REPO_ROOT
+    from jarvis_pytest.results.run_state import read_json, resource_id
+
+    hosts = list(engines.configured(args.docker_host, REPO_ROOT))
+    run = args.run
+    if run:  # a run folder (its name under reports/, or a path) stands for its resources, on the engines it used
+        folder = next((f for f in (Path(run), REPO_ROOT / "reports" / run) if (f / "run.json").is_file()), None)
+        if folder is not None:
+            run = resource_id(folder)
+            recorded = (read_json(folder / "run.json") or {}).get("engines") or []
+            hosts += [h for h in engines.check_urls(recorded, f"{folder / 'run.json'}: engines") if h not in hosts]
+    counts = engines.cleanup_everywhere(tuple(hosts), run_id=run, everything=args.all)
     what = f"run {args.run}" if args.run else "every run" if args.all else "orphans (owner process gone)"
-    print(", ".join(f"{v} {k}" for k, v in counts.items()) + f" removed ({what})")
+    where = f" on {len(hosts)} engines" if len(hosts) > 1 else ""
+    print(", ".join(f"{v} {k}" for k, v in counts.items()) + f" removed ({what}){where}")
     return 0
 
 
@@ -50,8 +63,12 @@ def register(sub) -> None:
     c = sub.add_parser("cleanup", help="remove containers, networks and volumes a crashed run left behind",
                        description="Without options: remove what runs whose process is gone left behind (runs "
                                    "still going are safe). --run: everything of one run. --all: everything.")
-    c.add_argument("--run", help="the run id (the name of its folder under reports/), live or not")
+    c.add_argument("--run", help="a run, live or not: its folder (its name under reports/, or a path) or the id "
+                   "its devices carry (label org.jarvis.run)")
     c.add_argument("--all", action="store_true", help="everything any jarvis run made, live runs included")
+    c.add_argument("--docker-host", action="append", default=None, metavar="URL",
+                   help="an engine to clean (repeatable; default: [tool.jarvis] docker_hosts, else the local one; "
+                   "with --run also the engines the run recorded)")
     c.set_defaults(func=_cleanup)
 
     p = sub.add_parser("bench", help="measure the harness")
@@ -75,6 +92,10 @@ def register(sub) -> None:
     esub = p.add_subparsers(dest="engine_command", required=True)
     e = esub.add_parser("ensure", help="install (Debian, root) and start the Docker engine if needed")
     e.set_defaults(func=engine.main_ensure)
+    x = esub.add_parser("extra", help="start another Docker engine on this machine (its own socket and data root) "
+                        "and print its URL, for --docker-host")
+    x.add_argument("index", type=int, help="2, 3, ... (1 is the local engine)")
+    x.set_defaults(func=engine.main_extra)
 
     p = sub.add_parser("images", help="device images")
     isub = p.add_subparsers(dest="images_command", required=True)

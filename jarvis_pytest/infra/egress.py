@@ -9,6 +9,10 @@ How (no traffic is ever sent to find out — the closure is read back from confi
   machine's metadata service, other Docker networks); in `INPUT`, new connections from a task bridge to the
   host itself are dropped (the gateway address and every other address of the host). Replies to the harness's
   own connections through the ports published on 127.0.0.1 are still accepted.
+- Traffic within one task bridge is accepted by a rule of that bridge alone (`DOCKER-USER -i jv-X -o jv-X`,
+  added with the network and removed with it): an engine that leaves the firewall to others (a second `dockerd`
+  with `--iptables=false`, `infra/engines.py`) gets no rules of its own, and the host's FORWARD policy would
+  otherwise drop its devices' traffic to their drive. Traffic between two task bridges stays dropped.
 - Each device's default route is deleted inside its network namespace (`nsenter`, from the host): `ip route`
   in a device shows only its task network. A device has no `NET_ADMIN` capability, so not even root inside it
   can put a route back.
@@ -85,6 +89,41 @@ def ensure_rules() -> None:
         MARKER.write_text("jarvis-pytest task networks are closed by iptables rules on jv+ bridges\n")
     except OSError:
         pass
+
+
+def _within(bridge: str) -> tuple[str, ...]:
+    return ("DOCKER-USER", "-i", bridge, "-o", bridge, "-j", "ACCEPT")
+
+
+def open_within(network_name: str) -> None:
+    """Accept traffic inside the closed task network `network_name` (root; otherwise the engine's own rules must)."""
+    if os.geteuid() != 0 or shutil.which("iptables") is None:
+        return
+    rule = _within(bridge_name(network_name, egress=False))
+    if _iptables("-C", *rule).returncode != 0:
+        proc = _iptables("-I", rule[0], "1", *rule[1:])
+        if proc.returncode != 0:
+            raise InfrastructureError(f"cannot install firewall rule `iptables -I {' '.join(rule)}`: "
+                                      f"{proc.stderr.strip()}")
+
+
+def close_within(network_name: str) -> None:
+    """Remove the rule of `open_within` (idempotent)."""
+    if os.geteuid() == 0 and shutil.which("iptables") is not None:
+        _iptables("-D", *_within(bridge_name(network_name, egress=False)))
+
+
+def remove_stale_within_rules() -> int:
+    """Remove the `open_within` rules whose bridge is gone (a run killed before it removed them); their count."""
+    if os.geteuid() != 0 or shutil.which("iptables") is None:
+        return 0
+    removed = 0
+    for line in _iptables("-S", "DOCKER-USER").stdout.splitlines():
+        parts = line.split()
+        if len(parts) == 8 and parts[2] == "-i" and parts[4] == "-o" and parts[3] == parts[5] \
+                and parts[3].startswith(f"{CLOSED_PREFIX}-") and not Path(f"/sys/class/net/{parts[3]}").exists():
+            removed += _iptables("-D", *_within(parts[3])).returncode == 0
+    return removed
 
 
 def cut_default_route(container: Any) -> None:

@@ -45,13 +45,21 @@ def _clear_stale_pidfiles(wait_seconds: float = 30.0) -> None:
             pidfile.unlink(missing_ok=True)
 
 
-def client(timeout: int = 120) -> docker.DockerClient:
-    """A Docker client for the local engine (raises InfrastructureError with the fix when none answers)."""
+def client(timeout: int = 120, host: str | None = None) -> docker.DockerClient:
+    """A Docker client for `host` (a URL as the Docker SDK takes it: unix://, tcp://, ssh://) or, without one, for
+    the local engine ($DOCKER_HOST or its socket); raises InfrastructureError with the fix when none answers."""
     try:
-        c = docker.from_env(timeout=timeout)
+        if host:
+            c = docker.DockerClient(base_url=host, timeout=timeout, use_ssh_client=host.startswith("ssh://"))
+        else:
+            c = docker.from_env(timeout=timeout)
         c.ping()
         return c
     except Exception as exc:  # docker raises several unrelated types here
+        if host:
+            raise InfrastructureError(
+                f"the Docker engine at {host} does not answer ({exc.__class__.__name__}: {exc}); start it, or drop "
+                "it from --docker-host / [tool.jarvis] docker_hosts") from exc
         raise InfrastructureError(
             f"no Docker engine answers ({exc.__class__.__name__}: {exc}); run `make engine` "
             "(as root it installs Debian's docker.io and starts dockerd)"
@@ -133,6 +141,81 @@ def ensure_engine(wait_seconds: float = 60.0) -> None:
         time.sleep(0.5)
     tail = DOCKERD_LOG.read_text(errors="replace")[-2000:] if DOCKERD_LOG.exists() else ""
     raise InfrastructureError(f"dockerd did not start (see {DOCKERD_LOG}); last log lines:\n{tail}")
+
+
+def extra_engine_url(index: int) -> str:
+    """The socket URL of extra engine `index` (2, 3, ...) of this machine (`start_extra_engine`)."""
+    return f"unix:///run/jarvis-engine-{index}/docker.sock"
+
+
+def start_extra_engine(index: int, wait_seconds: float = 60.0) -> str:
+    """Start (or find running) extra Docker engine `index` (2..50) of this machine and return its URL: a
+    `dockerd` of its own (socket and state under /run/jarvis-engine-<index>, images under
+    /var/lib/jarvis-engine-<index>, which stay for the next start), with no default bridge, its networks in
+    10.<200+index>.0.0/16 so they never overlap the first engine's, and the firewall left to the first engine
+    and the harness (`--iptables=false`; task networks get their rules from `infra/egress.py`). Root only."""
+    if not 2 <= index <= 50:
+        raise InfrastructureError(f"extra engine {index}: give an index from 2 to 50 (1 is the local engine)")
+    url = extra_engine_url(index)
+    if _ping_url(url):
+        return url
+    if os.geteuid() != 0 or shutil.which("dockerd") is None:
+        raise InfrastructureError("starting another Docker engine needs root and dockerd (`make engine` first)")
+    run, data = Path(f"/run/jarvis-engine-{index}"), Path(f"/var/lib/jarvis-engine-{index}")
+    run.mkdir(parents=True, exist_ok=True)
+    data.mkdir(parents=True, exist_ok=True)
+    log_path = run / "dockerd.log"
+    log = open(log_path, "ab")
+    daemon = subprocess.Popen(
+        ["dockerd", "--host", url, "--data-root", str(data), "--exec-root", str(run / "exec"),
+         "--pidfile", str(run / "docker.pid"), "--bridge", "none", "--iptables=false", "--ip-masq=false",
+         "--default-address-pool", f"base=10.{200 + index}.0.0/16,size=24"],
+        stdout=log, stderr=log, stdin=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.monotonic() + wait_seconds
+    while time.monotonic() < deadline:
+        if _ping_url(url):
+            return url
+        if daemon.poll() is not None:
+            break
+        time.sleep(0.3)
+    tail = log_path.read_text(errors="replace")[-2000:]
+    raise InfrastructureError(f"extra engine {index} did not start (see {log_path}); last log lines:\n{tail}")
+
+
+def stop_extra_engine(index: int, wait_seconds: float = 30.0) -> None:
+    """Stop extra engine `index` (its containers stop with it; its images stay in its data root)."""
+    pidfile = Path(f"/run/jarvis-engine-{index}/docker.pid")
+    try:
+        pid = int(pidfile.read_text().strip())
+        os.kill(pid, 15)
+    except (OSError, ValueError):
+        return
+    deadline = time.monotonic() + wait_seconds
+    while _alive(pid) and time.monotonic() < deadline:
+        try:
+            if os.waitpid(pid, os.WNOHANG)[0] == pid:  # our own child: reaped, not a zombie
+                return
+        except ChildProcessError:
+            pass
+        time.sleep(0.2)
+
+
+def _ping_url(url: str) -> bool:
+    try:
+        docker.DockerClient(base_url=url, timeout=5).ping()
+        return True
+    except Exception:
+        return False
+
+
+def main_extra(args) -> int:
+    """`jarvis engine extra N`: start extra engine N of this machine and print its URL (for --docker-host)."""
+    try:
+        print(start_extra_engine(args.index))
+    except InfrastructureError as exc:
+        print(f"jarvis engine: error: {exc}", file=sys.stderr)
+        return 1
+    return 0
 
 
 def main_ensure(_args=None) -> int:

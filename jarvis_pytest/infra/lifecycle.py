@@ -24,6 +24,7 @@ from jarvis_pytest.devices.base import Device
 from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.infra import containers as ctr
 from jarvis_pytest.infra import egress as egress_policy
+from jarvis_pytest.infra import engines
 from jarvis_pytest.infra.transfer import TransferClient
 from jarvis_pytest.infra.transfer_server import (TRANSFER_ALIAS, TRANSFER_PASSWORD, TRANSFER_USER, TransferServer,
                                                  transfer_server)
@@ -57,6 +58,7 @@ class TaskEnvironment:
     stand_ins: tuple[str, ...] = ()       # platforms whose backend is a stand-in for the real platform
     egress: bool = False
     volumes: list[Any] = field(default_factory=list)
+    engine: str = engines.LOCAL           # the Docker engine it runs on (`infra/engines.py`)
     _booted: list[Any] = field(default_factory=list)
     _closed: bool = False
 
@@ -88,6 +90,8 @@ class TaskEnvironment:
         owned = {id(b.container) for b in self._booted}
         rest = [c for c in self.containers.values() if id(c) not in owned]
         problems += ctr.remove_all(rest, self.network)
+        if not self.egress:
+            egress_policy.close_within(self.network.name)
         problems += _remove_volumes(self.volumes)
         if problems:
             print(f"[jarvis] could not remove {'; '.join(problems)}; run `jarvis cleanup --run {self.run_id}`",
@@ -113,10 +117,12 @@ class Lifecycle:
     """
 
     def __init__(self, run_id: str, worker: str = "main", limits: Limits | None = None,
-                 transfer: str | None = None, backends: dict[str, str] | None = None, egress: bool = False):
+                 transfer: str | None = None, backends: dict[str, str] | None = None, egress: bool = False,
+                 docker_host: str | None = None):
         from jarvis_pytest.infra.engine import client
 
-        self.docker = client()
+        self.docker_host = docker_host  # the engine of every environment this makes (None: the local engine)
+        self.docker = client(host=docker_host)
         self.run_id, self.worker = run_id, worker
         self.limits = limits or Limits()
         self.egress = egress
@@ -157,9 +163,12 @@ class Lifecycle:
 
     def _network(self, name: str) -> Any:
         try:
-            return self.docker.networks.create(name, driver="bridge",
-                                               options=egress_policy.network_options(name, self.egress),
-                                               labels=ctr.labels(self.run_id, self.worker, "network"))
+            network = self.docker.networks.create(name, driver="bridge",
+                                                  options=egress_policy.network_options(name, self.egress),
+                                                  labels=ctr.labels(self.run_id, self.worker, "network"))
+            if not self.egress:
+                egress_policy.open_within(name)
+            return network
         except Exception as exc:
             hint = (" — Docker ran out of address pools, most likely networks left by crashed runs: run "
                     "`jarvis cleanup`" if "address pool" in str(exc) else "")
@@ -249,6 +258,8 @@ class Lifecycle:
         except BaseException:
             stop.set()
             ctr.remove_all(list(started), network)  # everything made, also while we were removing
+            if not self.egress:
+                egress_policy.close_within(network.name)
             _remove_volumes(volumes)
             for client in clients.values():
                 client.close()
@@ -262,4 +273,5 @@ class Lifecycle:
                                network=network, containers=containers, urls=urls, run_id=self.run_id,
                                backends={p: b.label for p, b in backends.items()},
                                stand_ins=tuple(p for p, b in backends.items() if b.stand_in),
-                               egress=self.egress, volumes=volumes, _booted=list(booted.values()))
+                               egress=self.egress, volumes=volumes, _booted=list(booted.values()),
+                               engine=engines.name(self.docker_host))

@@ -20,6 +20,8 @@ import threading
 import time
 import uuid
 from pathlib import Path
+
+from jarvis_pytest.results.run_state import resource_id
 from typing import Any
 
 from jarvis_pytest.agents.planner import render_step
@@ -84,7 +86,7 @@ def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path) -> dict[
     def sample() -> None:
         nonlocal peak
         while not stop.wait(1.0):
-            peak = max(peak, _memory_mb(run_dir.name, docker))
+            peak = max(peak, _memory_mb(resource_id(run_dir), docker))
 
     with fake:
         cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-q", str(REPO_ROOT / "tasks" / "test_atomic.py"),

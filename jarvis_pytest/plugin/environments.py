@@ -15,10 +15,12 @@ def configure_backends(options: JarvisOptions) -> None:
 
 def make_environments(options: JarvisOptions, *, run_id: str, worker: str):
     """A pool that boots (and pre-warms) the devices of each task; `acquire(platforms)`, `prewarm`, `close`."""
+    from jarvis_pytest.infra.engines import for_worker
     from jarvis_pytest.infra.lifecycle import Lifecycle, Limits
     from jarvis_pytest.infra.pool import Pool
 
     configure_backends(options)
     lifecycle = Lifecycle(run_id, worker, Limits(memory=options.device_memory, cpus=options.device_cpus),
-                          transfer=options.transfer, backends=options.backends, egress=options.allow_egress)
+                          transfer=options.transfer, backends=options.backends, egress=options.allow_egress,
+                          docker_host=for_worker(options.docker_hosts, worker))
     return Pool(lifecycle, enabled=options.prewarm)

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from jarvis_pytest.errors import ConfigError
+from jarvis_pytest.infra import engines
 from jarvis_pytest.plugin.loop import LoopLimits
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -60,6 +61,10 @@ def addoption(parser: pytest.Parser) -> None:
     g.addoption("--transfer", default=None, choices=("copyparty", "alist"),
                 help="the network drive's server: copyparty (offline default, built here) or alist (an AList/"
                 "OpenList image pulled from a registry, $JARVIS_ALIST_IMAGE); default $JARVIS_TRANSFER or copyparty")
+    g.addoption("--docker-host", action="append", default=None, metavar="URL",
+                help="a Docker engine to run devices on (repeatable: xdist workers are spread over the engines, each "
+                "task's devices on one); unix://, tcp://127.0.0.1:PORT or ssh:// URLs of engines on this machine; "
+                "default: [tool.jarvis] docker_hosts in pyproject.toml, else the local engine")
     g.addoption("--qc", action="store_true", help="quality gate of the tasks: evaluate right after set-up (every "
                 "evaluator must fail), run the oracle, evaluate again (every subtask must pass); implies --agent oracle")
 
@@ -85,6 +90,7 @@ class JarvisOptions:
     backends: dict[str, str] = field(default_factory=dict)  # platform → backend name (absent: the default)
     android_serial: str | None = None
     android_image: str | None = None
+    docker_hosts: tuple[str, ...] = ()  # the run's Docker engines (`infra/engines.py`); empty: the local one
 
 
 def _endpoint(config: pytest.Config, role: str) -> dict[str, str | None]:
@@ -186,6 +192,7 @@ def read_options(config: pytest.Config) -> JarvisOptions:
         allow_egress=config.getoption("--allow-egress"),
         backends=_backends(config),
         android_serial=config.getoption("--android-serial"), android_image=config.getoption("--android-image"),
+        docker_hosts=engines.configured(config.getoption("--docker-host"), config.rootpath),
     )
 
 

@@ -104,6 +104,7 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
                 idle.remember(platform, env.image_ids[platform], device.observe().screenshot_png)
         result.backends = dict(getattr(env, "backends", {}))
         result.stand_ins = sorted(getattr(env, "stand_ins", ()))
+        result.engine = getattr(env, "engine", "")
         t_boot = time.monotonic()
         run_setup(subtasks, env.devices)
         baselines = capture_baselines(subtasks, env.devices)

@@ -126,10 +126,12 @@ class JarvisSession:
         key = agent_key(agent.config(), self.options.limits)
         if self.options.resume is not None:
             self._check_resume(key, agent.config(), tasks)
-        _remove_orphans()
+        _check_engines(self.options.docker_hosts)
+        _remove_orphans(self.options.docker_hosts)
         self.state = run_state.RunState(self.run_dir, redacted_argv(sys.argv[1:]), resumed=not self.new_run)
         self.state.start(agent=agent.config(), agent_key=key, egress=self.options.allow_egress,
-                         options={"max_steps": self.options.limits.max_steps, "instances": self.options.instances})
+                         options={"max_steps": self.options.limits.max_steps, "instances": self.options.instances},
+                         engines=list(self.options.docker_hosts))
 
     def _check_resume(self, key: str, agent_config: dict[str, Any], tasks: list[Task]) -> None:
         run_dir = self.run_dir
@@ -191,6 +193,8 @@ class JarvisSession:
         tasks = [t for t in map(_task_of, session.items) if t is not None]
         if tasks and (self.state is not None or not self.is_controller):
             run_state.merge_plan(self.run_dir, tasks)
+        if tasks and self.options.docker_hosts:  # the images this process's tasks need, on its engine
+            _copy_images_to_engine(self.options, self.worker, tasks)
 
     # -- running --------------------------------------------------------------------------------------------
     def ensure_context(self) -> RunContext:
@@ -199,7 +203,8 @@ class JarvisSession:
 
             self.context = RunContext(
                 run_dir=self.run_dir, agent=self.ensure_agent(),
-                environments=make_environments(self.options, run_id=self.run_dir.name, worker=self.worker),
+                environments=make_environments(self.options, run_id=run_state.resource_id(self.run_dir),
+                                               worker=self.worker),
                 limits=self.options.limits, keep_devices=self.options.keep_devices, on_keep=_print_kept,
                 qc=self.options.qc, egress=self.options.allow_egress,
             )
@@ -267,7 +272,7 @@ class JarvisSession:
         its workers): the controller removes whatever of the run is still there (a worker stopped in the middle
         of a task may leave its devices)."""
         self.close()
-        run_id = self.run_dir.name
+        run_id = run_state.resource_id(self.run_dir)
         if self.is_controller and self.state is not None:
             interrupted = self.interrupted or int(exitstatus) == int(pytest.ExitCode.INTERRUPTED)
             self.state.finish(interrupted, int(exitstatus))
@@ -278,7 +283,7 @@ class JarvisSession:
                 self.summary = self.write_summary()
         yield
         if self.is_controller and (self.state is not None or self.interrupted) and not self.options.keep_devices:
-            _remove_run_resources(run_id)
+            _remove_run_resources(run_id, self.options.docker_hosts)
 
     def write_summary(self):
         """summary.json and summary.md over every result of the run on disk and every task it planned."""
@@ -332,12 +337,48 @@ def _check_transfer_image(flavour: str) -> None:
             "to one you have") from None
 
 
-def _remove_orphans() -> None:
-    """What runs whose process is gone left on this host's engine (containers, networks); live runs are safe."""
-    from jarvis_pytest.infra.cleanup import cleanup
+def _check_engines(hosts: tuple[str, ...]) -> None:
+    """Every engine of the run answers and runs on this machine: one start-up error naming the engine if not."""
+    from jarvis_pytest.infra import engines
 
     try:
-        counts = cleanup(orphans_only=True)
+        for host in hosts:
+            engines.check_on_this_machine(host)
+    except JarvisError as exc:
+        raise pytest.UsageError(f"--docker-host: {exc}") from None
+
+
+def _copy_images_to_engine(options: JarvisOptions, worker: str, tasks: list[Task]) -> None:
+    """Copy the images of the selected tasks this machine can run to this process's engine, where missing (one
+    copier per engine at a time: the workers sharing an engine wait for the first)."""
+    import hashlib
+    import tempfile
+
+    from filelock import FileLock
+
+    from jarvis_pytest.devices.backend import backend_for
+    from jarvis_pytest.infra import engines
+    from jarvis_pytest.infra.transfer_server import transfer_server
+
+    host = engines.for_worker(options.docker_hosts, worker)
+    images = {transfer_server(options.transfer).image}
+    for task in tasks:
+        if skip_reason(task, options.backends) is None:
+            images |= {backend_for(p, options.backends.get(p)).image_ref for p in task_platforms(task)}
+    lock = Path(tempfile.gettempdir()) / f"jarvis-engine-{hashlib.sha256(str(host).encode()).hexdigest()[:12]}.lock"
+    try:
+        with FileLock(str(lock)):
+            engines.copy_images([host] if host else [], sorted(images))
+    except JarvisError as exc:
+        raise pytest.UsageError(f"--docker-host: {exc}") from None
+
+
+def _remove_orphans(hosts: tuple[str, ...] = ()) -> None:
+    """What runs whose process is gone left on the run's engines (containers, networks); live runs are safe."""
+    from jarvis_pytest.infra.engines import cleanup_everywhere
+
+    try:
+        counts = cleanup_everywhere(hosts, orphans_only=True)
     except Exception as exc:  # never a reason not to run; say it
         print(f"[jarvis] could not remove what earlier runs left: {exc}", file=sys.stderr, flush=True)
         return
@@ -346,13 +387,14 @@ def _remove_orphans() -> None:
               file=sys.stderr, flush=True)
 
 
-def _remove_run_resources(run_id: str) -> None:
-    from jarvis_pytest.infra.cleanup import cleanup
+def _remove_run_resources(run_id: str, hosts: tuple[str, ...] = ()) -> None:
+    from jarvis_pytest.infra.engines import cleanup_everywhere
 
     try:
-        counts = cleanup(run_id)
+        counts = cleanup_everywhere(hosts, run_id=run_id)
     except Exception as exc:
-        print(f"[jarvis] {exc}; run `jarvis cleanup --run {run_id}`", file=sys.stderr, flush=True)
+        hint = "".join(f" --docker-host {h}" for h in hosts)
+        print(f"[jarvis] {exc}; run `jarvis cleanup --run {run_id}{hint}`", file=sys.stderr, flush=True)
         return
     if any(counts.values()):
         print(f"[jarvis] removed what the stopped tasks left: " + ", ".join(f"{v} {k}" for k, v in counts.items()),

@@ -121,6 +121,7 @@ class Summary(BaseModel):
     stand_ins: dict[str, list[str]] = Field(default_factory=dict)  # platform → stand-in backends that ran it
     stand_in_categories: list[str] = Field(default_factory=list)  # atomic/sw/mi/md with a stand-in result counted
     tasks: int = 0  # tasks counted in the rates
+    rerun_after_device_fault: int = 0  # counted tasks whose devices faulted once and that ran again on fresh ones
     warnings: list[str] = Field(default_factory=list)  # inconsistent or unexpected results
     seed: int = 0
     n_boot: int = 2000
@@ -294,6 +295,7 @@ def rollup(results: Sequence[TaskResult], *, seed: int = 0, n_boot: int = 2000,
         stand_ins=_stand_ins(everything),
         stand_in_categories=sorted({r.category.lower() for r in everything if r.stand_ins}),
         tasks=len(everything), warnings=sorted(warnings),
+        rerun_after_device_fault=sum(1 for r in everything if r.device_faults),
         seed=seed, n_boot=n_boot, level=LEVEL)
 
 
@@ -339,6 +341,11 @@ def _notes(s: Summary) -> list[str]:
         f"{n_out} here). Unfinished tasks (status `running`: their session was stopped, {n_run} here) and tasks "
         f"planned but never started ({n_not} here) are not counted; `--resume` runs them.",
         f"- Intervals: {100 * s.level:g} % percentile bootstrap over tasks, {s.n_boot} resamples, seed {s.seed}.",
+        f"- A device that fails to carry out a command that is fine (Wine now and then cannot start a program) is "
+        f"not the task's failure: set-up (before the agent acts), an oracle command or a quality-gate near-miss "
+        f"state is done again on fresh devices, and an evaluator's read-only command is run again. The verdict is "
+        f"the last run's; `device_faults` in the result lists the faults ({s.rerun_after_device_fault} counted "
+        f"tasks ran again here).",
         "",
     ]
 

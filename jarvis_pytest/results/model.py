@@ -91,6 +91,7 @@ class TaskResult(BaseModel):
     egress: bool = False  # the devices could reach beyond their task network (--allow-egress)
     backends: dict[str, str] = Field(default_factory=dict)  # platform → the backend that ran it: "windows (wine)"
     stand_ins: list[str] = Field(default_factory=list)  # platforms that ran on a stand-in (Wine for Windows)
+    engine: str = ""  # the Docker engine the task's devices ran on: "local" or the --docker-host URL
     edges: list[tuple[int, int]] = Field(default_factory=list)  # (upstream, downstream) subtask indices
     failure_mode: str | None = None  # why a failed task failed (report/failure_modes.py)
     durations: dict[str, float] = Field(default_factory=dict)  # boot, setup, agent, evaluate, total (seconds)

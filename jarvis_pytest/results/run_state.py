@@ -46,6 +46,16 @@ def task_digest(task: Any) -> str:
     return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
+def resource_id(run_dir: Path) -> str:
+    """The run id its Docker resources carry (label `org.jarvis.run`, container names): the folder's name and a
+    digest of its absolute path, so two runs in folders of the same name (`a/qc`, `b/qc`) never share one (the
+    end of one would remove the other's devices) while a resumed run keeps its own."""
+    import hashlib
+
+    digest = hashlib.sha256(str(Path(run_dir).resolve()).encode()).hexdigest()[:6]
+    return f"{Path(run_dir).name}-{digest}"
+
+
 def process_alive(pid: int) -> bool:
     """Whether process `pid` of this host still runs (a zombie does not)."""
     try:
@@ -104,7 +114,8 @@ class RunState:
         old = read_json(self.path) if resumed else None
         now = now_iso()
         self.meta: dict[str, Any] = dict(old or {})
-        self.meta.update({"format": RUN_FORMAT, "run_id": run_dir.name, "state": "running", "finished": "",
+        self.meta.update({"format": RUN_FORMAT, "run_id": run_dir.name, "resources": resource_id(run_dir),
+                          "state": "running", "finished": "",
                           "heartbeat": now, "pid": os.getpid(), "host": socket.gethostname()})
         self.meta.setdefault("started", now)
         sessions = list(self.meta.get("sessions") or [])

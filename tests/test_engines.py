@@ -1,0 +1,122 @@
+"""Several Docker engines (`--docker-host`, `infra/engines.py`): the URLs and `[tool.jarvis] docker_hosts` are
+checked at start-up; a run of 4 real tasks under -n 2 with the local engine and a second, real `dockerd` of this
+machine (its own socket and data root: `jarvis engine extra 2`) puts each worker's tasks on its own engine, copies
+the images there first, and leaves nothing on either; a task network on the second engine carries a device's
+traffic to its drive and nothing else."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from jarvis_pytest.errors import ConfigError
+from jarvis_pytest.infra import engines
+from jarvis_pytest.results.run_state import resource_id
+
+REPO = Path(__file__).resolve().parents[1]
+LOCAL_URL = "unix:///var/run/docker.sock"
+TASKS = ["-k", "(mousepad-write_note or thunar-rename_file or terminal-count_matches or terminal-zip_folder) and seed0",
+         "--instances", "1"]
+
+
+@pytest.mark.parametrize("url", ["", "docker.sock", "/var/run/docker.sock", "tcp://", "http//x"])
+def test_a_bad_engine_url_is_one_clear_error(url):
+    with pytest.raises(ConfigError) as err:
+        engines.check_urls([url], "--docker-host")
+    assert "--docker-host" in str(err.value) and "unix:///path/to/docker.sock" in str(err.value)
+
+
+def test_engines_come_from_the_command_line_else_pyproject(tmp_path):
+    assert engines.configured(None, tmp_path) == ()
+    (tmp_path / "pyproject.toml").write_text('[tool.jarvis]\ndocker_hosts = ["unix:///a.sock", "tcp://127.0.0.1:2375", '
+                                             '"unix:///a.sock"]\n')
+    assert engines.configured(None, tmp_path) == ("unix:///a.sock", "tcp://127.0.0.1:2375")
+    assert engines.configured(["ssh://me@127.0.0.1"], tmp_path) == ("ssh://me@127.0.0.1",)
+    (tmp_path / "pyproject.toml").write_text('[tool.jarvis]\ndocker_hosts = "unix:///a.sock"\n')
+    with pytest.raises(ConfigError, match="tool.jarvis.docker_hosts.*is not a list"):
+        engines.configured(None, tmp_path)
+
+
+def test_workers_are_spread_over_the_engines():
+    hosts = ("unix:///a", "unix:///b")
+    assert [engines.for_worker(hosts, w) for w in ("gw0", "gw1", "gw2", "gw3", "main")] == \
+        ["unix:///a", "unix:///b", "unix:///a", "unix:///b", "unix:///a"]
+    assert engines.for_worker((), "gw5") is None
+
+
+def test_a_bad_engine_option_stops_the_run_before_anything_boots(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", str(REPO / "tasks"),
+                           "--agent", "noop", "--results-dir", str(tmp_path), "--docker-host", "docker.sock"],
+                          cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 4 and "--docker-host" in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+
+
+@pytest.fixture(scope="module")
+def second_engine(device_images):
+    from jarvis_pytest.infra.engine import _ping_url, extra_engine_url, start_extra_engine, stop_extra_engine
+    from jarvis_pytest.infra.images import image_tag
+
+    running = _ping_url(extra_engine_url(2))
+    url = start_extra_engine(2)  # fails loudly when it cannot start: never skipped
+    engines.copy_images([url], [image_tag("ubuntu"), image_tag("transfer")])
+    yield url
+    if not running:  # started here: stopped here (its images stay in its data root for the next time)
+        stop_extra_engine(2)
+
+
+def _leftovers(url: str | None, run_id: str) -> list[str]:
+    from jarvis_pytest.infra.engine import client
+
+    api = client(host=url).api
+    label = {"label": f"org.jarvis.run={run_id}"}
+    return ([c["Names"][0] for c in api.containers(all=True, filters=label)]
+            + [n["Name"] for n in api.networks(filters=label)]
+            + [v["Name"] for v in (api.volumes(filters=label) or {}).get("Volumes") or []])
+
+
+@pytest.mark.containers
+def test_a_run_of_four_tasks_uses_both_engines_and_leaves_nothing(second_engine, tmp_path):
+    cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", str(REPO / "tasks"), "--agent", "oracle",
+           "-n", "2", "--results-dir", str(tmp_path), "--docker-host", LOCAL_URL, "--docker-host", second_engine,
+           *TASKS]
+    proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=1200)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
+    results = [json.loads(p.read_text()) for p in tmp_path.glob("tasks/*/result.json")]
+    assert len(results) == 4 and all(r["status"] == "passed" for r in results), [r["error"] for r in results]
+    assert {r["engine"] for r in results} == {LOCAL_URL, second_engine}
+    assert json.loads((tmp_path / "run.json").read_text())["engines"] == [LOCAL_URL, second_engine]
+    run_id = resource_id(tmp_path)
+    assert _leftovers(None, run_id) == [] and _leftovers(second_engine, run_id) == []
+    rules = subprocess.run(["iptables", "-S", "DOCKER-USER"], capture_output=True, text=True).stdout
+    assert all(Path(f"/sys/class/net/{line.split()[3]}").exists()
+               for line in rules.splitlines() if line.startswith("-A DOCKER-USER -i jv-") and " -o jv-" in line)
+
+
+@pytest.mark.containers
+def test_a_task_network_on_the_second_engine_is_closed_but_reaches_its_drive(second_engine, tmp_path):
+    """The second engine leaves the firewall alone (`--iptables=false`): the harness's own rules carry a device's
+    traffic to its drive, and its default route is gone as on the first engine (read from routes, never probed
+    outside)."""
+    import uuid
+
+    from jarvis_pytest.infra.cleanup import cleanup
+    from jarvis_pytest.infra.egress import device_routes
+    from jarvis_pytest.infra.lifecycle import Lifecycle
+
+    run_id = f"test-engine2-{uuid.uuid4().hex[:8]}"
+    env = Lifecycle(run_id, "test", docker_host=second_engine).boot(("ubuntu",))
+    try:
+        assert env.engine == second_engine
+        res = env.devices["ubuntu"].run("curl -s -o /dev/null -w '%{http_code}' --max-time 10 http://transfer:5244/")
+        assert res.returncode == 0 and res.stdout.strip() in {"200", "401", "403"}, res
+        routes = device_routes(env.containers["ubuntu"])
+        assert routes and not any(r.startswith("default") for r in routes), routes
+        assert all(r.split()[0].startswith("10.202.") for r in routes), routes  # its own address pool
+    finally:
+        env.close()
+    cleanup(run_id, host=second_engine)
+    assert _leftovers(second_engine, run_id) == []
