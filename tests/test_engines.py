@@ -61,11 +61,16 @@ def second_engine(device_images):
     from jarvis_pytest.infra.images import image_tag
 
     running = _ping_url(extra_engine_url(2))
+    bridges = {p.name for p in Path("/sys/class/net").iterdir()} & {"docker0"}  # the first engine's own bridge
     url = start_extra_engine(2)  # fails loudly when it cannot start: never skipped
+    gone = bridges - {p.name for p in Path("/sys/class/net").iterdir()}
+    assert not gone, f"starting the second engine removed {gone} (the first engine's default bridge is docker0)"
     engines.copy_images([url], [image_tag("ubuntu"), image_tag("transfer")])
     yield url
     if not running:  # started here: stopped here (its images stay in its data root for the next time)
         stop_extra_engine(2)
+    gone = bridges - {p.name for p in Path("/sys/class/net").iterdir()}
+    assert not gone, f"the second engine removed {gone} (the first engine's default bridge is docker0)"
 
 
 def _leftovers(url: str | None, run_id: str) -> list[str]:

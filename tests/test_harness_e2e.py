@@ -48,6 +48,17 @@ def test_oracle_passes_every_task(oracle_run):
     assert "jarvis: task success rates" in proc.stdout and "100.0 (4/4)" in proc.stdout
 
 
+def test_prewarming_overlaps_the_previous_task(oracle_run):
+    """A worker's next task gets devices that began to boot while the previous task ran: created before the task
+    started, and taken at once instead of booted."""
+    run_dir, _ = oracle_run
+    results, _ = load_results(run_dir)
+    warm = [r for r in results if r.durations.get("booted_ahead", 0) > 0]
+    cold = [r for r in results if "booted_ahead" not in r.durations]
+    assert warm and cold, [(r.task_id, r.durations) for r in results]  # each worker's first task boots cold
+    assert min(r.durations["boot"] for r in warm) < min(r.durations["boot"] for r in cold) / 2
+
+
 def test_summary_equals_the_per_task_results(oracle_run):
     run_dir, _ = oracle_run
     results, _ = load_results(run_dir)

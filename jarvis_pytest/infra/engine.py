@@ -151,9 +151,11 @@ def extra_engine_url(index: int) -> str:
 def start_extra_engine(index: int, wait_seconds: float = 60.0) -> str:
     """Start (or find running) extra Docker engine `index` (2..50) of this machine and return its URL: a
     `dockerd` of its own (socket and state under /run/jarvis-engine-<index>, images under
-    /var/lib/jarvis-engine-<index>, which stay for the next start), with no default bridge, its networks in
-    10.<200+index>.0.0/16 so they never overlap the first engine's, and the firewall left to the first engine
-    and the harness (`--iptables=false`; task networks get their rules from `infra/egress.py`). Root only."""
+    /var/lib/jarvis-engine-<index>, which stay for the next start), its default bridge a bridge of its own
+    (`jarvisbr<index>`, 10.250.<index>.1/24: with `--bridge none` dockerd deletes `docker0`, the first
+    engine's), its networks in 10.<200+index>.0.0/16 so they never overlap the first engine's, and the firewall
+    left to the first engine and the harness (`--iptables=false`; task networks get their rules from
+    `infra/egress.py`). Root only."""
     if not 2 <= index <= 50:
         raise InfrastructureError(f"extra engine {index}: give an index from 2 to 50 (1 is the local engine)")
     url = extra_engine_url(index)
@@ -164,11 +166,21 @@ def start_extra_engine(index: int, wait_seconds: float = 60.0) -> str:
     run, data = Path(f"/run/jarvis-engine-{index}"), Path(f"/var/lib/jarvis-engine-{index}")
     run.mkdir(parents=True, exist_ok=True)
     data.mkdir(parents=True, exist_ok=True)
+    # Its network store goes: restarted with networks in its store, dockerd 20.10 deleted `docker0`, the first
+    # engine's bridge (seen here; a fresh store keeps it). Task networks never outlive a run anyway.
+    shutil.rmtree(data / "network", ignore_errors=True)
+    bridge = f"jarvisbr{index}"
+    if not Path(f"/sys/class/net/{bridge}").exists():
+        for cmd in (["ip", "link", "add", "name", bridge, "type", "bridge"],
+                    ["ip", "addr", "add", f"10.250.{index}.1/24", "dev", bridge], ["ip", "link", "set", bridge, "up"]):
+            proc = subprocess.run(cmd, capture_output=True, text=True)
+            if proc.returncode != 0:
+                raise InfrastructureError(f"extra engine {index}: `{' '.join(cmd)}` failed: {proc.stderr.strip()}")
     log_path = run / "dockerd.log"
     log = open(log_path, "ab")
     daemon = subprocess.Popen(
         ["dockerd", "--host", url, "--data-root", str(data), "--exec-root", str(run / "exec"),
-         "--pidfile", str(run / "docker.pid"), "--bridge", "none", "--iptables=false", "--ip-masq=false",
+         "--pidfile", str(run / "docker.pid"), "--bridge", bridge, "--iptables=false", "--ip-masq=false",
          "--default-address-pool", f"base=10.{200 + index}.0.0/16,size=24"],
         stdout=log, stderr=log, stdin=subprocess.DEVNULL, start_new_session=True)
     deadline = time.monotonic() + wait_seconds

@@ -15,6 +15,7 @@ from __future__ import annotations
 import secrets
 import sys
 import threading
+import time
 from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 from typing import Any
@@ -59,6 +60,7 @@ class TaskEnvironment:
     egress: bool = False
     volumes: list[Any] = field(default_factory=list)
     engine: str = engines.LOCAL           # the Docker engine it runs on (`infra/engines.py`)
+    boot_started: float = 0.0             # wall-clock time (time.time()) its boot began
     _booted: list[Any] = field(default_factory=list)
     _closed: bool = False
 
@@ -189,6 +191,7 @@ class Lifecycle:
             if why:
                 raise InfrastructureError(f"the {b.label} device cannot run on this machine: {why}")
         base = self._next_name()
+        boot_started = time.time()
         network = self._network(base)
         volumes: list[Any] = []
         stop = threading.Event()
@@ -274,4 +277,4 @@ class Lifecycle:
                                backends={p: b.label for p, b in backends.items()},
                                stand_ins=tuple(p for p, b in backends.items() if b.stand_in),
                                egress=self.egress, volumes=volumes, _booted=list(booted.values()),
-                               engine=engines.name(self.docker_host))
+                               engine=engines.name(self.docker_host), boot_started=boot_started)

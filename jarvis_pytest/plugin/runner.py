@@ -91,7 +91,7 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
                         agent_key=agent_key(config, ctx.limits), egress=ctx.egress,
                         edges=[(e.from_[0], e.to[0]) for e in task.edges], device_faults=list(faults))
     recorder = TaskRecorder(ctx.run_dir, result)
-    t_start = time.monotonic()
+    t_start, wall_start = time.monotonic(), time.time()
     env = None
     progress = LoopOutcome()
     try:
@@ -105,6 +105,7 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
         result.backends = dict(getattr(env, "backends", {}))
         result.stand_ins = sorted(getattr(env, "stand_ins", ()))
         result.engine = getattr(env, "engine", "")
+        booted_ahead = wall_start - getattr(env, "boot_started", wall_start)  # > 0: pre-warmed
         t_boot = time.monotonic()
         run_setup(subtasks, env.devices)
         baselines = capture_baselines(subtasks, env.devices)
@@ -139,6 +140,8 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
         result.durations = {"boot": t_boot - t_start, "setup": t_setup - t_boot, "agent": outcome.agent_seconds,
                             "loop": t_loop - t_setup, "evaluate": t_eval - t_loop,
                             "total": time.monotonic() - t_start}
+        if booted_ahead > 0:  # pre-warmed: its devices began to boot this long before the task started
+            result.durations["booted_ahead"] = round(booted_ahead, 3)
         if ctx.qc:
             result.durations["negatives"] = time.monotonic() - t_eval
         return result

@@ -415,6 +415,9 @@ def configure(config: pytest.Config) -> None:
         session = JarvisSession(config, options, run_dir, None)
     config.pluginmanager.register(session, PLUGIN_NAME)
     _sigterm_as_interrupt()
+    from jarvis_pytest.plugin import html
+
+    html.register(config, session)  # xdist workers too: the screenshots are attached where the report is made
     if not session.is_controller:
         return
     if config.pluginmanager.hasplugin("xdist"):
@@ -426,10 +429,6 @@ def configure(config: pytest.Config) -> None:
             raise pytest.UsageError(str(exc)) from None
         if config.pluginmanager.hasplugin("html") and not getattr(config.option, "htmlpath", None):
             config.option.htmlpath = str(session.run_dir / "report.html")
-    from jarvis_pytest.plugin import html
-
-    html.register(config, session)
-
 
 
 def _kept(stored: TaskResult | None, key: str) -> bool:
