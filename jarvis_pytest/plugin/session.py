@@ -131,7 +131,8 @@ class JarvisSession:
         self.state = run_state.RunState(self.run_dir, redacted_argv(sys.argv[1:]), resumed=not self.new_run)
         self.state.start(agent=agent.config(), agent_key=key, egress=self.options.allow_egress,
                          options={"max_steps": self.options.limits.max_steps, "instances": self.options.instances},
-                         engines=list(self.options.docker_hosts))
+                         engines=list(dict.fromkeys([*(self.state.meta.get("engines") or []),
+                                                     *self.options.docker_hosts])))  # every session's, for cleanup
 
     def _check_resume(self, key: str, agent_config: dict[str, Any], tasks: list[Task]) -> None:
         run_dir = self.run_dir
