@@ -69,6 +69,24 @@ def _memory_mb(run_id: str, docker: Any) -> float:
     return total / 2**20
 
 
+def _busy_cpu_seconds() -> float:
+    """CPU time the whole machine spent busy since boot (all cores; idle and I/O wait left out), /proc/stat."""
+    fields = [int(v) for v in Path("/proc/stat").read_text().splitlines()[0].split()[1:]]
+    user, nice, system, _idle, _iowait, irq, softirq, steal = (fields + [0] * 8)[:8]
+    return (user + nice + system + irq + softirq + steal) / os.sysconf("SC_CLK_TCK")
+
+
+CONTAINERS_CPU = Path("/sys/fs/cgroup/cpuacct/docker/cpuacct.usage")  # cgroup v1, nanoseconds
+
+
+def _containers_cpu_seconds() -> float | None:
+    """CPU time of every container of the local engine so far (cgroup v1 `docker` hierarchy), None elsewhere."""
+    try:
+        return int(CONTAINERS_CPU.read_text()) / 1e9
+    except (OSError, ValueError):
+        return None
+
+
 def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path) -> dict[str, Any]:
     """One benchmark run with `workers` xdist workers; the figures of the run."""
     from jarvis_pytest.infra.engine import client
@@ -95,9 +113,9 @@ def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path) -> dict[
                "--instances", str(tasks), "--results-dir", str(run_dir), "--step-timeout", str(60 + 4 * latency)]
         sampler = threading.Thread(target=sample, daemon=True)
         sampler.start()
-        t0 = time.monotonic()
+        t0, cpu0, dev0 = time.monotonic(), _busy_cpu_seconds(), _containers_cpu_seconds()
         proc = subprocess.run(cmd, cwd=REPO_ROOT, capture_output=True, text=True)
-        wall = time.monotonic() - t0
+        wall, cpu, dev1 = time.monotonic() - t0, _busy_cpu_seconds() - cpu0, _containers_cpu_seconds()
         stop.set()
     results = load_results(run_dir)[0]
     passed = sum(r.status == "passed" for r in results)
@@ -114,7 +132,15 @@ def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path) -> dict[
             "cold_start_share": round(boot / (wall * workers), 3) if wall else 0.0,
             "overhead_ms": {"p50": round(percentile(overhead, 0.5), 1) if overhead else None,
                             "p90": round(percentile(overhead, 0.9), 1) if overhead else None, "steps": len(overhead)},
-            "peak_memory_mb": round(peak), "exit": proc.returncode, "results": str(run_dir),
+            "peak_memory_mb": round(peak),
+            # the machine's busy CPU time per task (devices, harness, the loopback model, start-up) and the
+            # tasks/hour at which this machine's cores would be saturated
+            "cpu_s_per_task": round(cpu / len(results), 2) if results else None,
+            "device_cpu_s_per_task": round((dev1 - dev0) / len(results), 2) if results and dev0 is not None
+            and dev1 is not None else None,  # of which the devices and drives (their containers)
+            "cpu_bound_tasks_per_hour": round((os.cpu_count() or 1) * 3600 / (cpu / len(results))) if results and cpu
+            else None,
+            "exit": proc.returncode, "results": str(run_dir),
             "output_tail": proc.stdout[-600:] if proc.returncode else ""}
 
 
@@ -130,12 +156,14 @@ def render(result: dict[str, Any]) -> str:
     lines = [f"{result['tasks']} × {result['task']} per run, model latency {result['latency_ms']} ms per call, "
              f"{result['cores']} cores",
              f"{'workers':>7} {'tasks/h':>9} {'speed-up':>9} {'cold-start':>11} {'overhead p50':>13} {'p90':>7} "
-             f"{'peak MB':>8} {'passed':>7}"]
+             f"{'peak MB':>8} {'CPU s/task':>11} {'devices':>8} {'CPU-bound at':>13} {'passed':>7}"]
     for r in result["runs"]:
         o = r["overhead_ms"]
         lines.append(f"{r['workers']:>7} {r['tasks_per_hour']:>9.1f} {r['speedup'] or 0:>8.2f}× "
                      f"{100 * r['cold_start_share']:>10.1f}% {o['p50'] or 0:>11.1f} ms {o['p90'] or 0:>4.0f} ms "
-                     f"{r['peak_memory_mb']:>8} {r['passed']:>3}/{r['tasks']}")
+                     f"{r['peak_memory_mb']:>8} {r['cpu_s_per_task'] or 0:>11.1f} "
+                     f"{r['device_cpu_s_per_task'] if r['device_cpu_s_per_task'] is not None else '-':>8} "
+                     f"{r['cpu_bound_tasks_per_hour'] or 0:>9} /h {r['passed']:>3}/{r['tasks']}")
     return "\n".join(lines)
 
 
