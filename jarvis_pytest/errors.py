@@ -38,3 +38,16 @@ class DeviceFault(InfrastructureError):
 
 
 DEVICE_FAULT_ATTEMPTS = 3  # work hit by a DeviceFault is done on fresh devices up to this many times in all
+
+
+def retry_device_faults(work):
+    """`work(faults)` until it does not raise DeviceFault, at most DEVICE_FAULT_ATTEMPTS times (the last fault is
+    raised); returns its value and the messages of the faults before it. `work` boots its own fresh devices."""
+    faults: list[str] = []
+    while True:
+        try:
+            return work(faults), faults
+        except DeviceFault as exc:
+            if len(faults) + 1 >= DEVICE_FAULT_ATTEMPTS:
+                raise
+            faults.append(str(exc))

@@ -7,7 +7,7 @@ from typing import Any, Sequence
 
 from jarvis_pytest.devices.actions import parse_action
 from jarvis_pytest.devices.base import Device
-from jarvis_pytest.errors import DEVICE_FAULT_ATTEMPTS, DeviceFault
+from jarvis_pytest.errors import DeviceFault, retry_device_faults
 from jarvis_pytest.plugin.evaluation import capture_baselines, evaluate_subtasks
 from jarvis_pytest.plugin.setup_steps import run_setup
 from jarvis_pytest.results.model import NegativeVerdict
@@ -50,15 +50,8 @@ def run_negatives(subtasks: Sequence[Subtask], platforms: tuple[str, ...], envir
     out: list[NegativeVerdict] = []
     for s_index, sub in enumerate(subtasks):
         for n_index, neg in enumerate(sub.negatives or []):
-            faults: list[str] = []
-            for attempt in range(1, DEVICE_FAULT_ATTEMPTS + 1):
-                try:
-                    error, verdicts = _negative_on_fresh_devices(subtasks, sub, neg.steps, platforms, environments)
-                    break
-                except DeviceFault as exc:
-                    if attempt == DEVICE_FAULT_ATTEMPTS:
-                        raise
-                    faults.append(str(exc))
+            (error, verdicts), faults = retry_device_faults(
+                lambda _: _negative_on_fresh_devices(subtasks, sub, neg.steps, platforms, environments))
             passed = error is None and all(v.passed for v in verdicts)
             out.append(NegativeVerdict(subtask=s_index, index=n_index, kind=neg.kind, note=neg.note,
                                        passed=passed, error=error, verdicts=verdicts, device_faults=faults))

@@ -13,7 +13,7 @@ from jarvis_pytest.agents.protocol import Agent, TaskContext
 from jarvis_pytest.devices.actions import PLATFORMS
 from jarvis_pytest.infra.transfer_server import (TRANSFER_ALIAS, TRANSFER_FOLDER, TRANSFER_PASSWORD, TRANSFER_PORT,
                                                  TRANSFER_USER)
-from jarvis_pytest.errors import DEVICE_FAULT_ATTEMPTS, ConfigError, DeviceFault, InfrastructureError
+from jarvis_pytest.errors import ConfigError, InfrastructureError, retry_device_faults
 from jarvis_pytest.plugin.evaluation import capture_baselines, evaluate_subtasks
 from jarvis_pytest.plugin import idle
 from jarvis_pytest.plugin.idle import idle_observation
@@ -71,15 +71,7 @@ def run_task(task: Task, ctx: RunContext) -> TaskResult:
     """Run `task` and return its result; raises on infrastructure errors after recording them in result.json
     with status "error". A device fault (`DeviceFault`: in set-up, an oracle command or a near-miss state) runs
     the task again on fresh devices, up to DEVICE_FAULT_ATTEMPTS times in all; the result lists the faults."""
-    faults: list[str] = []
-    for attempt in range(1, DEVICE_FAULT_ATTEMPTS + 1):
-        try:
-            return _run_once(task, ctx, faults)
-        except DeviceFault as exc:
-            if attempt == DEVICE_FAULT_ATTEMPTS:
-                raise
-            faults.append(str(exc))
-    raise AssertionError("unreachable")
+    return retry_device_faults(lambda faults: _run_once(task, ctx, faults))[0]
 
 
 def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
