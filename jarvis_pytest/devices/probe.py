@@ -44,11 +44,12 @@ def boot(image: str = "jarvis/ubuntu:latest", platform: str = "ubuntu", timeout:
     backend = backend_for(platform)
     client = client or docker.from_env()
     t0 = time.perf_counter()
-    container = client.containers.run(image, detach=True, labels={TEST_LABEL: "1"},
-                                      ports={f"{backend.port}/tcp": ("127.0.0.1", None)},
-                                      **backend.container_options)
+    container = client.containers.create(image, detach=True, labels={TEST_LABEL: "1"},
+                                         ports={f"{backend.port}/tcp": ("127.0.0.1", None)},
+                                         **backend.container_options)
     device = None
     try:
+        container.start()  # a start that fails (e.g. no default bridge) leaves nothing: `finally` removes it
         container.reload()
         url = f"http://127.0.0.1:{container.ports[f'{backend.port}/tcp'][0]['HostPort']}"
         try:
