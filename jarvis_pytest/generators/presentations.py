@@ -1,10 +1,11 @@
-"""Generators of presentations: a .pptx (python-pptx) of title-and-content slides, deterministic in content."""
+"""Generators of presentations: a .pptx (python-pptx) of title-and-content slides, deterministic to the byte."""
 
 from __future__ import annotations
 
 import datetime
 import io
 
+from jarvis_pytest.generators.documents import _fixed_zip_times
 from jarvis_pytest.generators.registry import generator
 
 
@@ -30,4 +31,4 @@ def pptx_presentation(titles: list[str], bullets: list[str] | None = None) -> by
     prs.core_properties.author = "jarvis"
     buf = io.BytesIO()
     prs.save(buf)
-    return buf.getvalue()
+    return _fixed_zip_times(buf.getvalue())  # python-pptx stamps each member with the current time
