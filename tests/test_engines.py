@@ -57,10 +57,10 @@ def test_a_bad_engine_option_stops_the_run_before_anything_boots(tmp_path):
 
 @pytest.fixture(scope="module")
 def second_engine(device_images):
-    from jarvis_pytest.infra.engine import _ping_url, extra_engine_url, start_extra_engine, stop_extra_engine
+    from jarvis_pytest.infra.engine import _ping, extra_engine_url, start_extra_engine, stop_extra_engine
     from jarvis_pytest.infra.images import image_tag
 
-    running = _ping_url(extra_engine_url(2))
+    running = _ping(extra_engine_url(2))
     bridges = {p.name for p in Path("/sys/class/net").iterdir()} & {"docker0"}  # the first engine's own bridge
     url = start_extra_engine(2)  # fails loudly when it cannot start: never skipped
     gone = bridges - {p.name for p in Path("/sys/class/net").iterdir()}

@@ -79,9 +79,6 @@ def cleanup(run_id: str | None = None, everything: bool = False, orphans_only: b
                 continue
             if _remove(resource, kind, problems):
                 counts[kind] += 1
-    from jarvis_pytest.infra.egress import remove_stale_within_rules
-
-    remove_stale_within_rules()  # the firewall rules of the task networks just removed (or removed before)
     if problems:
         raise InfrastructureError("could not remove " + "; ".join(problems) + " (is another run still using them? "
                                   "`docker ps -a --filter label=org.jarvis.run` shows what is left)")

@@ -80,15 +80,20 @@ def ensure_rules() -> None:
     if _iptables("-L", "DOCKER-USER", "-n").returncode != 0:
         _iptables("-N", "DOCKER-USER")  # Docker makes it when it starts; make sure either way
     for rule in RULES:
-        if _iptables("-C", *rule).returncode != 0:
-            proc = _iptables("-I", *rule[:1], "1", *rule[1:])
-            if proc.returncode != 0:
-                raise InfrastructureError(f"cannot install firewall rule `iptables -I {' '.join(rule)}`: "
-                                          f"{proc.stderr.strip()}")
+        _insert_rule(rule)
     try:
         MARKER.write_text("jarvis-pytest task networks are closed by iptables rules on jv+ bridges\n")
     except OSError:
         pass
+
+
+def _insert_rule(rule: tuple[str, ...]) -> None:
+    """Put `rule` (chain first) at the top of its chain unless it is there already."""
+    if _iptables("-C", *rule).returncode != 0:
+        proc = _iptables("-I", rule[0], "1", *rule[1:])
+        if proc.returncode != 0:
+            raise InfrastructureError(f"cannot install firewall rule `iptables -I {' '.join(rule)}`: "
+                                      f"{proc.stderr.strip()}")
 
 
 def _within(bridge: str) -> tuple[str, ...]:
@@ -99,12 +104,7 @@ def open_within(network_name: str) -> None:
     """Accept traffic inside the closed task network `network_name` (root; otherwise the engine's own rules must)."""
     if os.geteuid() != 0 or shutil.which("iptables") is None:
         return
-    rule = _within(bridge_name(network_name, egress=False))
-    if _iptables("-C", *rule).returncode != 0:
-        proc = _iptables("-I", rule[0], "1", *rule[1:])
-        if proc.returncode != 0:
-            raise InfrastructureError(f"cannot install firewall rule `iptables -I {' '.join(rule)}`: "
-                                      f"{proc.stderr.strip()}")
+    _insert_rule(_within(bridge_name(network_name, egress=False)))
 
 
 def close_within(network_name: str) -> None:

@@ -66,9 +66,10 @@ def client(timeout: int = 120, host: str | None = None) -> docker.DockerClient:
         ) from exc
 
 
-def _ping() -> bool:
+def _ping(url: str | None = None) -> bool:
+    """Whether the engine at `url` (default: the local one) answers within 5 s."""
     try:
-        docker.from_env(timeout=5).ping()
+        (docker.DockerClient(base_url=url, timeout=5) if url else docker.from_env(timeout=5)).ping()
         return True
     except Exception:
         return False
@@ -159,7 +160,7 @@ def start_extra_engine(index: int, wait_seconds: float = 60.0) -> str:
     if not 2 <= index <= 50:
         raise InfrastructureError(f"extra engine {index}: give an index from 2 to 50 (1 is the local engine)")
     url = extra_engine_url(index)
-    if _ping_url(url):
+    if _ping(url):
         return url
     if os.geteuid() != 0 or shutil.which("dockerd") is None:
         raise InfrastructureError("starting another Docker engine needs root and dockerd (`make engine` first)")
@@ -185,7 +186,7 @@ def start_extra_engine(index: int, wait_seconds: float = 60.0) -> str:
         stdout=log, stderr=log, stdin=subprocess.DEVNULL, start_new_session=True)
     deadline = time.monotonic() + wait_seconds
     while time.monotonic() < deadline:
-        if _ping_url(url):
+        if _ping(url):
             return url
         if daemon.poll() is not None:
             break
@@ -210,14 +211,6 @@ def stop_extra_engine(index: int, wait_seconds: float = 30.0) -> None:
         except ChildProcessError:
             pass
         time.sleep(0.2)
-
-
-def _ping_url(url: str) -> bool:
-    try:
-        docker.DockerClient(base_url=url, timeout=5).ping()
-        return True
-    except Exception:
-        return False
 
 
 def main_extra(args) -> int:

@@ -128,9 +128,11 @@ def _identity(docker: Any) -> tuple[str, str]:
 
 
 def cleanup_everywhere(hosts: Sequence[str], **selection: Any) -> dict[str, int]:
-    """`cleanup.cleanup(**selection)` on every engine (the local one when `hosts` is empty); counts summed.
-    Every engine is cleaned even when one fails; the failures are raised together after."""
+    """`cleanup.cleanup(**selection)` on every engine (the local one when `hosts` is empty); counts summed, then
+    the machine's firewall rules of task networks now gone. Every engine is cleaned even when one fails; the
+    failures are raised together after."""
     from jarvis_pytest.infra.cleanup import cleanup
+    from jarvis_pytest.infra.egress import remove_stale_within_rules
 
     total = {"containers": 0, "networks": 0, "volumes": 0}
     problems = []
@@ -140,6 +142,7 @@ def cleanup_everywhere(hosts: Sequence[str], **selection: Any) -> dict[str, int]
                 total[kind] = total.get(kind, 0) + count
         except InfrastructureError as exc:
             problems.append(f"{name(host)}: {exc}")
+    remove_stale_within_rules()  # one firewall for every engine of this machine
     if problems:
         raise InfrastructureError("; ".join(problems))
     return total
