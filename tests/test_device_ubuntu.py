@@ -90,7 +90,7 @@ def recorder(device):
     """A full-screen window inside the device that logs the input events it gets; yields a reader."""
     device.upload("/tmp/recorder.py", RECORDER.read_bytes())
     device.run("rm -f /tmp/events.log")
-    device.launch("python3", "/tmp/recorder.py", "/tmp/events.log")
+    device.launch("python3", "/tmp/recorder.py", "/tmp/events.log", window_wait=0)  # no managed window: waited below
     events = lambda: [json.loads(l) for l in device.download("/tmp/events.log").decode().splitlines()]  # noqa: E731
     wait_for(lambda: device.run("test -s /tmp/events.log").returncode == 0 and events(), what="recorder ready")
 
@@ -195,7 +195,8 @@ def test_pyautogui_script(device, recorder):
               "pyautogui.doubleClick(240, 250)\npyautogui.scroll(-2)\npyautogui.hotkey('ctrl', 'a')\n")
     assert device.act(A.Pyautogui(script=script)).ok
     ev = recorder()
-    assert presses(ev) == [(3, 220, 230), (1, 240, 250), (1, 240, 250), (5, 240, 250), (5, 240, 250)]
+    assert presses(ev) == [(3, 220, 230), (1, 240, 250), (1, 240, 250), (5, 240, 250), (5, 240, 250)], \
+        " ".join(f"{e['type']}:{e.get('button', e.get('key', ''))}@{e['x']},{e['y']}t{e['time']}" for e in ev)
     assert [e["key"] for e in ev if e["type"] == "key_down"] == ["Control_L", "a"]
     bad = device.act(A.Pyautogui(script="pyautogui.nosuchcall()"))
     assert not bad.ok and "AttributeError" in bad.error and device.health().desktop

@@ -18,6 +18,7 @@ from jarvis_pytest.devices.backend import Backend, register_backend
 from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.infra.cleanup import cleanup
 from jarvis_pytest.infra.containers import LABEL_HOST, LABEL_PID, LABEL_PLATFORM, LABEL_ROLE, LABEL_RUN, LABEL_WORKER
+from jarvis_pytest.infra.egress import bridge_name
 from jarvis_pytest.infra.lifecycle import Lifecycle, Limits
 from jarvis_pytest.infra.pool import Pool
 
@@ -29,6 +30,13 @@ def leftovers(run_id: str) -> list[str]:
     label = {"label": f"{LABEL_RUN}={run_id}"}
     return sorted([c.name for c in d.containers.list(all=True, filters=label)]
                   + [n.name for n in d.networks.list(filters=label)] + [v.name for v in d.volumes.list(filters=label)])
+
+
+def within_rules(network_name: str) -> int:
+    """How many firewall rules accept traffic inside the closed network `network_name` (`egress.open_within`)."""
+    bridge = bridge_name(network_name, egress=False)
+    rules = subprocess.run(["iptables", "-S", "DOCKER-USER"], capture_output=True, text=True, check=True).stdout
+    return rules.count(f"-i {bridge} -o {bridge} -j ACCEPT")
 
 
 def bindings(container) -> list[dict]:
@@ -209,10 +217,13 @@ def test_cleanup_after_the_run_is_killed(standin_platforms, device_images):
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(10)
         assert len(leftovers(run_id)) == 3  # ubuntu, transfer, network: a kill -9 leaves them
+        killed_net = [n.name for n in docker.from_env().networks.list(filters={"label": f"{LABEL_RUN}={run_id}"})]
+        assert [within_rules(n) for n in killed_net] == [1]  # the network's own accept rule stays with it
         # another worker of the same run is still alive: cleaning orphans must spare its environment
         live = Lifecycle(run_id, "gw1").boot(standin_platforms[:1])
         assert cleanup(run_id, orphans_only=True) == {"containers": 2, "networks": 1, "volumes": 0}
         assert leftovers(run_id) == sorted([*(c.name for c in live.containers.values()), live.network.name])
+        assert [within_rules(n) for n in [*killed_net, live.network.name]] == [0, 1]  # the rule went first
         assert live.transfer.list("/") == (["data"], [])
         # `jarvis cleanup --run` removes everything of the run, live or not
         out = subprocess.run([sys.executable, "-m", "jarvis_pytest.cli", "cleanup", "--run", run_id],
@@ -220,6 +231,7 @@ def test_cleanup_after_the_run_is_killed(standin_platforms, device_images):
         assert out.returncode == 0, out.stderr
         assert "2 containers, 1 networks, 0 volumes removed" in out.stdout
         assert leftovers(run_id) == []
+        assert [within_rules(n) for n in [*killed_net, live.network.name]] == [0, 0]  # rules go with networks
     finally:
         proc.kill()
         if live is not None:

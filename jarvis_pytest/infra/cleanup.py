@@ -14,6 +14,7 @@ from typing import Any
 
 from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.infra.containers import LABEL_HOST, LABEL_PID, LABEL_RUN
+from jarvis_pytest.infra.egress import close_within
 from jarvis_pytest.results.run_state import process_alive
 
 
@@ -35,6 +36,7 @@ def _remove(resource: Any, kind: str, problems: list[str]) -> bool:
             elif kind == "volumes":
                 resource.remove(force=True)
             else:
+                close_within(resource.name)  # the rule before its bridge, as a run removes its own network
                 resource.remove()
             return True
         except docker.errors.NotFound:

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Callable
 
 from jarvis_pytest.errors import InfrastructureError
+from jarvis_pytest.infra import egress
 
 if TYPE_CHECKING:
     from jarvis_pytest.devices.backend import Backend
@@ -127,9 +128,9 @@ def wait_until_ready(container: Any, check: Callable[[float], None], timeout: fl
 
 
 def remove_all(containers: list[Any], network: Any | None) -> list[str]:
-    """Remove containers (in parallel, with their anonymous volumes), then the network; what is already gone
-    is fine. Returns what could not be removed (empty when all went), so callers can say so instead of raising
-    in `finally` blocks.
+    """Remove containers (in parallel, with their anonymous volumes), then the network (its firewall rule
+    first, `egress.close_within`, then its bridge); what is already gone is fine. Returns what could not be
+    removed (empty when all went), so callers can say so instead of raising in `finally` blocks.
     """
     import docker.errors
 
@@ -149,6 +150,7 @@ def remove_all(containers: list[Any], network: Any | None) -> list[str]:
         results = [remove(c) for c in containers]
     problems = [p for p in results if p]
     if network is not None:
+        egress.close_within(network.name)  # its firewall rule first: no rule ever names a bridge that is gone
         for attempt in range(5):  # a container removal racing ours may keep the network busy for a moment
             try:
                 network.remove()

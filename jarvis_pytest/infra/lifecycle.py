@@ -92,8 +92,6 @@ class TaskEnvironment:
         owned = {id(b.container) for b in self._booted}
         rest = [c for c in self.containers.values() if id(c) not in owned]
         problems += ctr.remove_all(rest, self.network)
-        if not self.egress:
-            egress_policy.close_within(self.network.name)
         problems += _remove_volumes(self.volumes)
         if problems:
             print(f"[jarvis] could not remove {'; '.join(problems)}; run `jarvis cleanup --run {self.run_id}`",
@@ -261,8 +259,6 @@ class Lifecycle:
         except BaseException:
             stop.set()
             ctr.remove_all(list(started), network)  # everything made, also while we were removing
-            if not self.egress:
-                egress_policy.close_within(network.name)
             _remove_volumes(volumes)
             for client in clients.values():
                 client.close()

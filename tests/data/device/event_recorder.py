@@ -8,7 +8,12 @@ from Xlib import X, XK, display
 
 d = display.Display()
 screen = d.screen()
+# override-redirect: the window manager leaves it alone. A managed window gets xfwm4's click-to-focus button grab,
+# which is synchronous: the pointer freezes on a press until xfwm4 replays it, and on a busy machine the X server
+# then delivers the queued button events with the pointer's later position (seen: a double-click reported at the
+# place of a move sent after it). This window checks the control server's input, not the window manager.
 win = screen.root.create_window(0, 0, screen.width_in_pixels, screen.height_in_pixels, 0, screen.root_depth,
+                                override_redirect=True,
                                 event_mask=X.ButtonPressMask | X.ButtonReleaseMask | X.KeyPressMask
                                 | X.KeyReleaseMask | X.PointerMotionMask | X.ExposureMask)
 win.set_wm_name("jarvis-event-recorder")
