@@ -19,18 +19,42 @@ REPO = Path(__file__).resolve().parents[1]
 
 def test_throughput_bench_runs_real_tasks_and_reports_every_figure(device_images, tmp_path):
     proc = subprocess.run([sys.executable, "-m", "jarvis_pytest.cli", "bench", "throughput", "--workers", "1,2",
-                           "--tasks", "2", "--latency-ms", "200", "--results", str(tmp_path), "--json"],
+                           "--tasks", "3", "--latency-ms", "200", "--results", str(tmp_path), "--json"],
                           cwd=REPO, capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     print(proc.stdout)
     result = json.loads(proc.stdout)
     assert [r["workers"] for r in result["runs"]] == [1, 2] and result["latency_ms"] == 200
     for run in result["runs"]:
-        assert run["exit"] == 0 and run["tasks"] == run["passed"] == 2, run
+        assert run["exit"] == 0 and run["tasks"] == run["passed"] == 3, run
         assert run["tasks_per_hour"] > 0 and 0 <= run["cold_start_share"] <= 1
         assert run["overhead_ms"]["steps"] >= 2 * 2 and run["overhead_ms"]["p50"] > 0  # a step: observe + act
         assert run["peak_memory_mb"] > 100 and run["cpu_s_per_task"] > 0 and run["cpu_bound_tasks_per_hour"] > 0
         if CONTAINERS_CPU.exists():  # cgroup v1 with Docker's cgroupfs driver, as here
             assert 0 < run["device_cpu_s_per_task"] < run["cpu_s_per_task"], run
-        assert len(list(Path(run["results"]).glob("tasks/*/result.json"))) == 2
+        results = [json.loads(p.read_text()) for p in Path(run["results"]).glob("tasks/*/result.json")]
+        workers = {r["worker"] for r in results}
+        assert len(results) == 3 and workers <= {f"gw{n}" for n in range(run["workers"])}, workers
+        if run["workers"] == 1:  # the steady state: one worker is past its first task after it
+            assert run["steady"]["tasks"] == 2 and run["steady"]["tasks_per_hour"] > 0, run["steady"]
+            assert 0 <= run["steady"]["cold_start_share"] <= 1
     assert result["runs"][0]["speedup"] == 1.0 and result["runs"][1]["speedup"] > 0
+
+
+def test_steady_state_is_read_where_every_worker_is_busy():
+    from jarvis_pytest.infra.throughput import steady_state
+    from jarvis_pytest.results.model import TaskResult
+
+    def task(worker: str, start: int, end: int, boot: float) -> TaskResult:
+        return TaskResult(task_id=f"{worker}-{end}", category="atomic", platforms=["ubuntu"], instruction="",
+                          status="passed", worker=worker, durations={"boot": boot},
+                          started=f"2026-11-24T10:00:{start:02d}.000+00:00",
+                          finished=f"2026-11-24T10:00:{end:02d}.000+00:00")
+
+    # gw0's first task ends at 4 s, gw1's at 10 s: the window opens at 10 s; gw1 ends its last at 40 s, gw0 at
+    # 50 s: it closes at 40 s. In (10, 40] tasks end at 20, 30 (gw0) and 25, 40 (gw1); begun in it: 1.5 s of boot.
+    results = [task("gw0", 0, 4, 4.0), task("gw0", 4, 20, 0.5), task("gw0", 20, 30, 1.5), task("gw0", 30, 50, 0.0),
+               task("gw1", 0, 10, 9.0), task("gw1", 10, 25, 0.0), task("gw1", 25, 40, 0.0)]
+    assert steady_state(results) == {"tasks_per_hour": 4 / 30 * 3600, "cold_start_share": round(1.5 / 60, 3),
+                                     "tasks": 4, "window_s": 30.0}
+    assert steady_state(results[:4] + results[4:5])["tasks_per_hour"] is None  # gw1 ran one task

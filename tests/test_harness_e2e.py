@@ -50,13 +50,19 @@ def test_oracle_passes_every_task(oracle_run):
 
 def test_prewarming_overlaps_the_previous_task(oracle_run):
     """A worker's next task gets devices that began to boot while the previous task ran: created before the task
-    started, and taken at once instead of booted."""
+    started, and taken at once instead of booted; a worker's first task gets devices that began to boot while
+    the workers were still collecting (all six tasks are Ubuntu's, so that guess is right)."""
     run_dir, _ = oracle_run
     results, _ = load_results(run_dir)
-    warm = [r for r in results if r.durations.get("booted_ahead", 0) > 0]
-    cold = [r for r in results if "booted_ahead" not in r.durations]
-    assert warm and cold, [(r.task_id, r.durations) for r in results]  # each worker's first task boots cold
-    assert min(r.durations["boot"] for r in warm) < min(r.durations["boot"] for r in cold) / 2
+    first = {}
+    for r in sorted(results, key=lambda r: r.started):
+        first.setdefault(r.worker, r)
+    assert set(first) == {"gw0", "gw1"}
+    assert all(r.durations.get("booted_ahead", 0) > 0 for r in first.values()), [r.durations for r in results]
+    # most of a boot hidden: the devices began booting long enough before the task that it hardly waited
+    hidden = [r for r in results if r.durations.get("booted_ahead", 0) > 1.0
+              and r.durations["boot"] < 0.5 * (r.durations["booted_ahead"] + r.durations["boot"])]
+    assert hidden, [(r.task_id, r.worker, r.durations) for r in results]
 
 
 def test_summary_equals_the_per_task_results(oracle_run):

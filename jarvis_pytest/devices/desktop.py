@@ -13,6 +13,7 @@ from jarvis_pytest.devices.protocol import (A11yTree, ActionResult, ClipboardTex
                                             LaunchRequest, LaunchResponse, OpenRequest, PathInfo, RunRequest,
                                             RunResponse, ScreenSize, WindowList)
 from jarvis_pytest.errors import InfrastructureError
+from jarvis_pytest.http_client import http_client
 
 
 LAUNCH_WINDOW_WAIT = 20.0  # seconds `launch` waits for the application's window
@@ -29,7 +30,7 @@ class DesktopDevice:
     def __init__(self, base_url: str, platform: str = "ubuntu", timeout: float = 30.0):
         self.platform = platform
         self.base_url = base_url.rstrip("/")
-        self.http = httpx.Client(base_url=self.base_url, timeout=timeout)
+        self.http = http_client(base_url=self.base_url, timeout=timeout)
 
     def __repr__(self) -> str:
         return f"DesktopDevice({self.base_url!r}, platform={self.platform!r})"
@@ -161,7 +162,7 @@ def wait_ready(base_url: str, timeout: float) -> None:
     """Poll /health until the desktop is up; raise InfrastructureError after `timeout` seconds."""
     deadline = time.monotonic() + timeout
     last = "no answer"
-    with httpx.Client(base_url=base_url, timeout=2.0) as http:
+    with http_client(base_url=base_url, timeout=2.0) as http:
         while time.monotonic() < deadline:
             try:
                 data = http.get("/health").json()

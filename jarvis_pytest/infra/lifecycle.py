@@ -60,6 +60,7 @@ class TaskEnvironment:
     egress: bool = False
     volumes: list[Any] = field(default_factory=list)
     engine: str = engines.LOCAL           # the Docker engine it runs on (`infra/engines.py`)
+    worker: str = ""                      # the xdist worker (gw0, …; main without xdist) it was booted for
     boot_started: float = 0.0             # wall-clock time (time.time()) its boot began
     _booted: list[Any] = field(default_factory=list)
     _closed: bool = False
@@ -273,4 +274,4 @@ class Lifecycle:
                                backends={p: b.label for p, b in backends.items()},
                                stand_ins=tuple(p for p, b in backends.items() if b.stand_in),
                                egress=self.egress, volumes=volumes, _booted=list(booted.values()),
-                               engine=engines.name(self.docker_host), boot_started=boot_started)
+                               engine=engines.name(self.docker_host), worker=self.worker, boot_started=boot_started)

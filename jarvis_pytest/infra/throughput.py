@@ -87,6 +87,32 @@ def _containers_cpu_seconds() -> float | None:
         return None
 
 
+def steady_state(results: list[Any]) -> dict[str, Any]:
+    """The rate a long run settles at, read in the window where every worker is past its first task and none
+    has finished its last (start-up, collection, first boots and the tail left out): tasks that ended in the
+    window per hour, and the share of the workers' time in it spent waiting for devices by tasks that began in
+    it. None when no such window exists (a worker ran a single task)."""
+    from datetime import datetime
+
+    def ts(iso: str) -> float:
+        return datetime.fromisoformat(iso).timestamp()
+
+    done = [r for r in results if r.finished and r.started and r.worker]
+    ends: dict[str, list[float]] = {}
+    for r in done:
+        ends.setdefault(r.worker, []).append(ts(r.finished))
+    if not ends or min(len(v) for v in ends.values()) < 2:
+        return {"tasks_per_hour": None, "cold_start_share": None, "tasks": 0, "window_s": 0.0}
+    t1, t2 = max(min(v) for v in ends.values()), min(max(v) for v in ends.values())
+    if t2 <= t1:
+        return {"tasks_per_hour": None, "cold_start_share": None, "tasks": 0, "window_s": 0.0}
+    window = t2 - t1
+    ended = sum(t1 < ts(r.finished) <= t2 for r in done)
+    boot = sum(float(r.durations.get("boot", 0.0)) for r in done if t1 <= ts(r.started) <= t2)
+    return {"tasks_per_hour": round(ended / window * 3600, 1),
+            "cold_start_share": round(boot / (window * len(ends)), 3), "tasks": ended, "window_s": round(window, 1)}
+
+
 def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path) -> dict[str, Any]:
     """One benchmark run with `workers` xdist workers; the figures of the run."""
     from jarvis_pytest.infra.engine import client
@@ -133,6 +159,7 @@ def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path) -> dict[
             "overhead_ms": {"p50": round(percentile(overhead, 0.5), 1) if overhead else None,
                             "p90": round(percentile(overhead, 0.9), 1) if overhead else None, "steps": len(overhead)},
             "peak_memory_mb": round(peak),
+            "steady": steady_state(results),
             # the machine's busy CPU time per task (devices, harness, the loopback model, start-up) and the
             # tasks/hour at which this machine's cores would be saturated
             "cpu_s_per_task": round(cpu / len(results), 2) if results else None,
@@ -147,20 +174,27 @@ def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path) -> dict[
 def measure(worker_counts: list[int], latency_ms: int, tasks: int, out_root: Path) -> dict[str, Any]:
     runs = [run_once(w, latency_ms, tasks, out_root) for w in worker_counts]
     base = runs[0]["tasks_per_hour"] if runs else 0.0
+    steady_base = runs[0]["steady"]["tasks_per_hour"] if runs else None
     for r in runs:
         r["speedup"] = round(r["tasks_per_hour"] / base, 2) if base else None
+        rate = r["steady"]["tasks_per_hour"]
+        r["steady"]["speedup"] = round(rate / steady_base, 2) if rate and steady_base else None
     return {"task": TASK, "latency_ms": latency_ms, "tasks": tasks, "cores": os.cpu_count(), "runs": runs}
 
 
 def render(result: dict[str, Any]) -> str:
     lines = [f"{result['tasks']} × {result['task']} per run, model latency {result['latency_ms']} ms per call, "
-             f"{result['cores']} cores",
-             f"{'workers':>7} {'tasks/h':>9} {'speed-up':>9} {'cold-start':>11} {'overhead p50':>13} {'p90':>7} "
-             f"{'peak MB':>8} {'CPU s/task':>11} {'devices':>8} {'CPU-bound at':>13} {'passed':>7}"]
+             f"{result['cores']} cores; whole run, then steady state (each worker after its first task)",
+             f"{'workers':>7} {'tasks/h':>9} {'speed-up':>9} {'cold-start':>11} {'steady/h':>9} {'speed-up':>9} "
+             f"{'cold-start':>11} {'overhead p50':>13} {'p90':>7} {'peak MB':>8} {'CPU s/task':>11} {'devices':>8} "
+             f"{'CPU-bound at':>13} {'passed':>7}"]
     for r in result["runs"]:
-        o = r["overhead_ms"]
+        o, st = r["overhead_ms"], r["steady"]
+        steady = (f"{st['tasks_per_hour']:>9.1f} {st.get('speedup') or 0:>8.2f}× {100 * st['cold_start_share']:>10.1f}%"
+                  if st["tasks_per_hour"] else f"{'-':>9} {'-':>9} {'-':>11}")
         lines.append(f"{r['workers']:>7} {r['tasks_per_hour']:>9.1f} {r['speedup'] or 0:>8.2f}× "
-                     f"{100 * r['cold_start_share']:>10.1f}% {o['p50'] or 0:>11.1f} ms {o['p90'] or 0:>4.0f} ms "
+                     f"{100 * r['cold_start_share']:>10.1f}% {steady} "
+                     f"{o['p50'] or 0:>11.1f} ms {o['p90'] or 0:>4.0f} ms "
                      f"{r['peak_memory_mb']:>8} {r['cpu_s_per_task'] or 0:>11.1f} "
                      f"{r['device_cpu_s_per_task'] if r['device_cpu_s_per_task'] is not None else '-':>8} "
                      f"{r['cpu_bound_tasks_per_hour'] or 0:>9} /h {r['passed']:>3}/{r['tasks']}")

@@ -16,6 +16,7 @@ from urllib.parse import quote, unquote
 import httpx
 
 from jarvis_pytest.errors import InfrastructureError
+from jarvis_pytest.http_client import http_client
 
 
 @runtime_checkable
@@ -54,7 +55,7 @@ class _Drive:
 
     def __init__(self, base_url: str, timeout: float):
         self.base_url = base_url.rstrip("/")
-        self.http = httpx.Client(base_url=self.base_url, timeout=timeout)
+        self.http = http_client(base_url=self.base_url, timeout=timeout)
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.base_url!r})"

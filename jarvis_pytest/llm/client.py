@@ -27,6 +27,7 @@ from typing import Any
 import httpx
 
 from jarvis_pytest.errors import ConfigError, InfrastructureError
+from jarvis_pytest.http_client import http_client
 from jarvis_pytest.llm.deadline import remaining
 
 #: HTTP statuses worth another try: rate limits, overload, gateway trouble.
@@ -121,7 +122,7 @@ class ChatClient:
         headers = {"Content-Type": "application/json"}
         if self._api_key:
             headers["Authorization"] = f"Bearer {self._api_key}"
-        self._http = httpx.Client(headers=headers, timeout=httpx.Timeout(self.timeout), transport=transport)
+        self._http = http_client(headers=headers, timeout=httpx.Timeout(self.timeout), transport=transport)
         self._semaphore = endpoint_semaphore(self.base_url, self.max_concurrency)
 
     def __repr__(self) -> str:

@@ -97,6 +97,7 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
         result.backends = dict(getattr(env, "backends", {}))
         result.stand_ins = sorted(getattr(env, "stand_ins", ()))
         result.engine = getattr(env, "engine", "")
+        result.worker = getattr(env, "worker", "")
         booted_ahead = wall_start - getattr(env, "boot_started", wall_start)  # > 0: pre-warmed
         t_boot = time.monotonic()
         run_setup(subtasks, env.devices)

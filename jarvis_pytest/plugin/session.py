@@ -196,6 +196,25 @@ class JarvisSession:
             run_state.merge_plan(self.run_dir, tasks)
         if tasks and self.options.docker_hosts:  # the images this process's tasks need, on its engine
             _copy_images_to_engine(self.options, self.worker, tasks)
+        if tasks and not self.is_controller:
+            self._prewarm_first(tasks)
+
+    def _prewarm_first(self, tasks: list[Task]) -> None:
+        """An xdist worker learns its first task only when every worker has collected and the controller has
+        scheduled: boot ahead, for the platforms most of the run's tasks need, so that wait hides the first boot
+        too. A wrong guess costs one environment that waits for a later task of its platforms (or the end).
+        Not with --resume (kept results make the guess poor) nor when some workers may get no task at all."""
+        workers = int(getattr(self.config, "workerinput", {}).get("workercount", 1))
+        runnable = [task_platforms(t) for t in tasks if skip_reason(t, self.options.backends) is None]
+        if not self.options.prewarm or self.options.resume is not None or len(runnable) < workers:
+            return
+        from collections import Counter
+
+        platforms = Counter(runnable).most_common(1)[0][0]
+        try:
+            self.ensure_context().environments.prewarm(platforms)
+        except JarvisError:
+            return  # the first task meets the same error, where it is reported
 
     # -- running --------------------------------------------------------------------------------------------
     def ensure_context(self) -> RunContext:

@@ -92,6 +92,7 @@ class TaskResult(BaseModel):
     backends: dict[str, str] = Field(default_factory=dict)  # platform → the backend that ran it: "windows (wine)"
     stand_ins: list[str] = Field(default_factory=list)  # platforms that ran on a stand-in (Wine for Windows)
     engine: str = ""  # the Docker engine the task's devices ran on: "local" or the --docker-host URL
+    worker: str = ""  # the xdist worker that ran it ("gw0", …; "main" without xdist)
     edges: list[tuple[int, int]] = Field(default_factory=list)  # (upstream, downstream) subtask indices
     failure_mode: str | None = None  # why a failed task failed (report/failure_modes.py)
     durations: dict[str, float] = Field(default_factory=dict)  # boot, setup, agent, evaluate, total (seconds)
