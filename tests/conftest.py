@@ -78,3 +78,15 @@ def register_standin_backends() -> tuple[str, ...]:
 def standin_platforms(device_images) -> tuple[str, ...]:
     """The stand-in platforms, registered (see `register_standin_backends`)."""
     return register_standin_backends()
+
+
+def within_rules(network_name: str) -> int:
+    """How many firewall rules accept traffic inside the closed task network `network_name`
+    (`egress.open_within`): 1 while it exists, 0 once it is removed."""
+    import subprocess
+
+    from jarvis_pytest.infra.egress import bridge_name
+
+    bridge = bridge_name(network_name, egress=False)
+    rules = subprocess.run(["iptables", "-S", "DOCKER-USER"], capture_output=True, text=True, check=True).stdout
+    return rules.count(f"-i {bridge} -o {bridge} -j ACCEPT")

@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import within_rules
 
 from jarvis_pytest.errors import ConfigError
 from jarvis_pytest.infra import engines
@@ -19,6 +20,8 @@ from jarvis_pytest.results.run_state import resource_id
 
 REPO = Path(__file__).resolve().parents[1]
 LOCAL_URL = "unix:///var/run/docker.sock"
+TCP_PORT = 23752  # the second engine also answers on tcp://127.0.0.1:23752: the same engine through a tcp:// URL
+TCP_URL = f"tcp://127.0.0.1:{TCP_PORT}"
 TASKS = ["-k", "(mousepad-write_note or thunar-rename_file or terminal-count_matches or terminal-zip_folder) and seed0",
          "--instances", "1"]
 
@@ -61,8 +64,12 @@ def second_engine(device_images):
     from jarvis_pytest.infra.images import image_tag
 
     running = _ping(extra_engine_url(2))
+    if running and not _ping(TCP_URL):  # started before without its TCP listener: started again with it
+        stop_extra_engine(2)
+        running = False
     bridges = {p.name for p in Path("/sys/class/net").iterdir()} & {"docker0"}  # the first engine's own bridge
-    url = start_extra_engine(2)  # fails loudly when it cannot start: never skipped
+    url = start_extra_engine(2, tcp_port=TCP_PORT)  # fails loudly when it cannot start: never skipped
+    assert _ping(TCP_URL)
     gone = bridges - {p.name for p in Path("/sys/class/net").iterdir()}
     assert not gone, f"starting the second engine removed {gone} (the first engine's default bridge is docker0)"
     engines.copy_images([url], [image_tag("ubuntu"), image_tag("transfer")])
@@ -105,17 +112,20 @@ def test_a_run_of_four_tasks_uses_both_engines_and_leaves_nothing(second_engine,
 def test_a_task_network_on_the_second_engine_is_closed_but_reaches_its_drive(second_engine, tmp_path):
     """The second engine leaves the firewall alone (`--iptables=false`): the harness's own rules carry a device's
     traffic to its drive, and its default route is gone as on the first engine (read from routes, never probed
-    outside)."""
+    outside). The engine is reached through its tcp:// URL here (the run above used its unix:// one)."""
     import uuid
 
     from jarvis_pytest.infra.cleanup import cleanup
     from jarvis_pytest.infra.egress import device_routes
+    from jarvis_pytest.infra.engine import client
     from jarvis_pytest.infra.lifecycle import Lifecycle
 
     run_id = f"test-engine2-{uuid.uuid4().hex[:8]}"
-    env = Lifecycle(run_id, "test", docker_host=second_engine).boot(("ubuntu",))
+    engines.check_on_this_machine(TCP_URL)
+    env = Lifecycle(run_id, "test", docker_host=TCP_URL).boot(("ubuntu",))
     try:
-        assert env.engine == second_engine
+        assert env.engine == TCP_URL
+        assert env.containers["ubuntu"].id in {c.id for c in client(host=second_engine).containers.list()}
         res = env.devices["ubuntu"].run("curl -s -o /dev/null -w '%{http_code}' --max-time 10 http://transfer:5244/")
         assert res.returncode == 0 and res.stdout.strip() in {"200", "401", "403"}, res
         routes = device_routes(env.containers["ubuntu"])
@@ -123,5 +133,5 @@ def test_a_task_network_on_the_second_engine_is_closed_but_reaches_its_drive(sec
         assert all(r.split()[0].startswith("10.202.") for r in routes), routes  # its own address pool
     finally:
         env.close()
-    cleanup(run_id, host=second_engine)
-    assert _leftovers(second_engine, run_id) == []
+    cleanup(run_id, host=TCP_URL)
+    assert _leftovers(second_engine, run_id) == [] and within_rules(env.network.name) == 0

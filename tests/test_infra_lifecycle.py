@@ -13,12 +13,12 @@ from concurrent.futures import ThreadPoolExecutor
 
 import docker
 import pytest
+from conftest import within_rules
 
 from jarvis_pytest.devices.backend import Backend, register_backend
 from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.infra.cleanup import cleanup
 from jarvis_pytest.infra.containers import LABEL_HOST, LABEL_PID, LABEL_PLATFORM, LABEL_ROLE, LABEL_RUN, LABEL_WORKER
-from jarvis_pytest.infra.egress import bridge_name
 from jarvis_pytest.infra.lifecycle import Lifecycle, Limits
 from jarvis_pytest.infra.pool import Pool
 
@@ -30,13 +30,6 @@ def leftovers(run_id: str) -> list[str]:
     label = {"label": f"{LABEL_RUN}={run_id}"}
     return sorted([c.name for c in d.containers.list(all=True, filters=label)]
                   + [n.name for n in d.networks.list(filters=label)] + [v.name for v in d.volumes.list(filters=label)])
-
-
-def within_rules(network_name: str) -> int:
-    """How many firewall rules accept traffic inside the closed network `network_name` (`egress.open_within`)."""
-    bridge = bridge_name(network_name, egress=False)
-    rules = subprocess.run(["iptables", "-S", "DOCKER-USER"], capture_output=True, text=True, check=True).stdout
-    return rules.count(f"-i {bridge} -o {bridge} -j ACCEPT")
 
 
 def bindings(container) -> list[dict]:

@@ -83,8 +83,8 @@ def register(sub) -> None:
                         "latency, once per worker count")
     t.add_argument("--workers", default="1,2,4,8", help="xdist worker counts to run, comma-separated (default 1,2,4,8)")
     t.add_argument("--latency-ms", type=int, default=2000, help="the model's answer time per call (default 2000)")
-    t.add_argument("--tasks", type=int, default=24, help="tasks per run (default 24: three per worker at 8 "
-                   "workers, so the steady state is measured too)")
+    t.add_argument("--tasks", type=int, default=None, help="tasks per run (default: 6 per worker, at least 24, "
+                   "so that every worker's steady state can be read)")
     t.add_argument("--results", default=None, help="where the runs' results go (default reports/)")
     t.add_argument("--json", action="store_true", help="print JSON")
     t.set_defaults(func=_bench_throughput)
@@ -96,6 +96,8 @@ def register(sub) -> None:
     x = esub.add_parser("extra", help="start another Docker engine on this machine (its own socket and data root) "
                         "and print its URL, for --docker-host")
     x.add_argument("index", type=int, help="2, 3, ... (1 is the local engine)")
+    x.add_argument("--tcp", type=int, metavar="PORT", help="also listen on tcp://127.0.0.1:PORT (no TLS; loopback "
+                   "only) and print that URL too")
     x.set_defaults(func=engine.main_extra)
 
     p = sub.add_parser("images", help="device images")

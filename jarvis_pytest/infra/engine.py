@@ -149,18 +149,23 @@ def extra_engine_url(index: int) -> str:
     return f"unix:///run/jarvis-engine-{index}/docker.sock"
 
 
-def start_extra_engine(index: int, wait_seconds: float = 60.0) -> str:
+def start_extra_engine(index: int, wait_seconds: float = 60.0, tcp_port: int | None = None) -> str:
     """Start (or find running) extra Docker engine `index` (2..50) of this machine and return its URL: a
     `dockerd` of its own (socket and state under /run/jarvis-engine-<index>, images under
     /var/lib/jarvis-engine-<index>, which stay for the next start), its default bridge a bridge of its own
     (`jarvisbr<index>`, 10.250.<index>.1/24: with `--bridge none` dockerd deletes `docker0`, the first
     engine's), its networks in 10.<200+index>.0.0/16 so they never overlap the first engine's, and the firewall
     left to the first engine and the harness (`--iptables=false`; task networks get their rules from
-    `infra/egress.py`). Root only."""
+    `infra/egress.py`). With `tcp_port` it also listens on tcp://127.0.0.1:<tcp_port> (no TLS: loopback only,
+    and whoever can reach it is root on this machine, as with the socket). Root only."""
     if not 2 <= index <= 50:
         raise InfrastructureError(f"extra engine {index}: give an index from 2 to 50 (1 is the local engine)")
     url = extra_engine_url(index)
+    tcp = [] if tcp_port is None else ["--host", f"tcp://127.0.0.1:{int(tcp_port)}"]
     if _ping(url):
+        if tcp and not _ping(tcp[1]):
+            raise InfrastructureError(f"extra engine {index} runs without {tcp[1]}: stop it (kill the pid in "
+                                      f"/run/jarvis-engine-{index}/docker.pid) and start it again with the port")
         return url
     if os.geteuid() != 0 or shutil.which("dockerd") is None:
         raise InfrastructureError("starting another Docker engine needs root and dockerd (`make engine` first)")
@@ -180,7 +185,7 @@ def start_extra_engine(index: int, wait_seconds: float = 60.0) -> str:
     log_path = run / "dockerd.log"
     log = open(log_path, "ab")
     daemon = subprocess.Popen(
-        ["dockerd", "--host", url, "--data-root", str(data), "--exec-root", str(run / "exec"),
+        ["dockerd", "--host", url, *tcp, "--data-root", str(data), "--exec-root", str(run / "exec"),
          "--pidfile", str(run / "docker.pid"), "--bridge", bridge, "--iptables=false", "--ip-masq=false",
          "--default-address-pool", f"base=10.{200 + index}.0.0/16,size=24"],
         stdout=log, stderr=log, stdin=subprocess.DEVNULL, start_new_session=True)
@@ -216,7 +221,9 @@ def stop_extra_engine(index: int, wait_seconds: float = 30.0) -> None:
 def main_extra(args) -> int:
     """`jarvis engine extra N`: start extra engine N of this machine and print its URL (for --docker-host)."""
     try:
-        print(start_extra_engine(args.index))
+        print(start_extra_engine(args.index, tcp_port=args.tcp))
+        if args.tcp:
+            print(f"tcp://127.0.0.1:{args.tcp}")
     except InfrastructureError as exc:
         print(f"jarvis engine: error: {exc}", file=sys.stderr)
         return 1

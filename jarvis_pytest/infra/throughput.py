@@ -171,20 +171,31 @@ def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path) -> dict[
             "output_tail": proc.stdout[-600:] if proc.returncode else ""}
 
 
-def measure(worker_counts: list[int], latency_ms: int, tasks: int, out_root: Path) -> dict[str, Any]:
-    runs = [run_once(w, latency_ms, tasks, out_root) for w in worker_counts]
+PER_WORKER, AT_LEAST = 6, 24  # default tasks per run: 6 per worker, at least 24
+
+
+def tasks_for(workers: int, tasks: int | None) -> int:
+    """Tasks in the run with `workers` workers: `tasks` when given, else 6 per worker and at least 24 (each
+    worker runs long enough that its steady state can be read past its first task)."""
+    return tasks if tasks else max(AT_LEAST, PER_WORKER * workers)
+
+
+def measure(worker_counts: list[int], latency_ms: int, tasks: int | None, out_root: Path) -> dict[str, Any]:
+    runs = [run_once(w, latency_ms, tasks_for(w, tasks), out_root) for w in worker_counts]
     base = runs[0]["tasks_per_hour"] if runs else 0.0
     steady_base = runs[0]["steady"]["tasks_per_hour"] if runs else None
     for r in runs:
         r["speedup"] = round(r["tasks_per_hour"] / base, 2) if base else None
         rate = r["steady"]["tasks_per_hour"]
         r["steady"]["speedup"] = round(rate / steady_base, 2) if rate and steady_base else None
+    # `tasks`: as asked (None: the default per worker count; each run says its own in runs[].tasks)
     return {"task": TASK, "latency_ms": latency_ms, "tasks": tasks, "cores": os.cpu_count(), "runs": runs}
 
 
 def render(result: dict[str, Any]) -> str:
-    lines = [f"{result['tasks']} × {result['task']} per run, model latency {result['latency_ms']} ms per call, "
-             f"{result['cores']} cores; whole run, then steady state (each worker after its first task)",
+    count = result["tasks"] or f"{PER_WORKER} per worker (at least {AT_LEAST})"
+    lines = [f"{count} × {result['task']} per run, model latency {result['latency_ms']} ms per call, "
+             f"{result['cores']} cores; whole run, then steady state (every worker past its first task, none done)",
              f"{'workers':>7} {'tasks/h':>9} {'speed-up':>9} {'cold-start':>11} {'steady/h':>9} {'speed-up':>9} "
              f"{'cold-start':>11} {'overhead p50':>13} {'p90':>7} {'peak MB':>8} {'CPU s/task':>11} {'devices':>8} "
              f"{'CPU-bound at':>13} {'passed':>7}"]
