@@ -2,7 +2,7 @@
 
 `httpx.Client()` builds a TLS context and loads the CA bundle into it each time: about 23 ms of CPU per client
 (measured with httpx 0.28). A task makes several clients (its devices, its drive, the agent's model endpoints,
-readiness polls), so that was about a tenth of a second of CPU per task for nothing. One context, built on first
+readiness polls), so that was a tenth to a quarter of a second of CPU per task for nothing. One context, built on first
 use with httpx's own defaults (certifi, or SSL_CERT_FILE / SSL_CERT_DIR), serves every client; an SSLContext
 may be shared between threads.
 """

@@ -97,18 +97,18 @@ def steady_state(results: list[Any]) -> dict[str, Any]:
     def ts(iso: str) -> float:
         return datetime.fromisoformat(iso).timestamp()
 
-    done = [r for r in results if r.finished and r.started and r.worker]
+    done = [(ts(r.started), ts(r.finished), float(r.durations.get("boot", 0.0)), r.worker)
+            for r in results if r.finished and r.started and r.worker]
     ends: dict[str, list[float]] = {}
-    for r in done:
-        ends.setdefault(r.worker, []).append(ts(r.finished))
-    if not ends or min(len(v) for v in ends.values()) < 2:
-        return {"tasks_per_hour": None, "cold_start_share": None, "tasks": 0, "window_s": 0.0}
-    t1, t2 = max(min(v) for v in ends.values()), min(max(v) for v in ends.values())
-    if t2 <= t1:
+    for _, end, _, worker in done:
+        ends.setdefault(worker, []).append(end)
+    t1 = max((min(v) for v in ends.values()), default=0.0)
+    t2 = min((max(v) for v in ends.values()), default=0.0)
+    if min((len(v) for v in ends.values()), default=0) < 2 or t2 <= t1:
         return {"tasks_per_hour": None, "cold_start_share": None, "tasks": 0, "window_s": 0.0}
     window = t2 - t1
-    ended = sum(t1 < ts(r.finished) <= t2 for r in done)
-    boot = sum(float(r.durations.get("boot", 0.0)) for r in done if t1 <= ts(r.started) <= t2)
+    ended = sum(t1 < end <= t2 for _, end, _, _ in done)
+    boot = sum(b for start, _, b, _ in done if t1 <= start <= t2)
     return {"tasks_per_hour": round(ended / window * 3600, 1),
             "cold_start_share": round(boot / (window * len(ends)), 3), "tasks": ended, "window_s": round(window, 1)}
 
