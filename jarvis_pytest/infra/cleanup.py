@@ -29,6 +29,8 @@ def is_orphan(labels: dict[str, str]) -> bool:
 def _remove(resource: Any, kind: str, problems: list[str]) -> bool:
     import docker.errors
 
+    if kind == "networks":
+        close_within(resource.name)  # the rule before its bridge, as a run removes its own network
     for attempt in range(5):
         try:
             if kind == "containers":
@@ -36,7 +38,6 @@ def _remove(resource: Any, kind: str, problems: list[str]) -> bool:
             elif kind == "volumes":
                 resource.remove(force=True)
             else:
-                close_within(resource.name)  # the rule before its bridge, as a run removes its own network
                 resource.remove()
             return True
         except docker.errors.NotFound:
