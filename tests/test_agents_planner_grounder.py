@@ -242,3 +242,17 @@ def test_history_and_transfer_rendering():
     copyparty = render_transfer({**TRANSFER, "flavour": "copyparty"})
     assert "copyparty" in copyparty and "password: agentPassword" in copyparty
     assert "No file transfer server" in render_transfer({})
+
+
+def test_preflight_probes_both_models_at_once(monkeypatch):
+    """Start-up waits for the slower model, not the sum of both: each probe waits until both are in flight (one
+    after the other, the first would wait in vain and the barrier break), then makes its real request."""
+    import threading
+
+    with FakeChatServer(api_key=KEY, models=("planner", "grounder")) as server:
+        agent = load_agent("holo2", options(server))
+        both = threading.Barrier(2, timeout=10)
+        for client in (agent.planner, agent.grounder.client):
+            monkeypatch.setattr(client, "probe", lambda real=client.probe: (both.wait(), real())[1])
+        agent.preflight()
+    assert sorted(r.model for r in server.requests) == ["grounder", "planner"]

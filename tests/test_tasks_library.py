@@ -296,3 +296,32 @@ def test_every_template_of_the_benchmark_carries_near_miss_negatives():
     lib = load_library(Path(__file__).resolve().parents[1] / "tasks")
     lacking = {t.id: negative_problems(t) for t in lib.templates if negative_problems(t) or len(t.negatives) < 2}
     assert not lacking, lacking
+
+
+def test_pytest_cases_make_atomic_instances_on_first_use(monkeypatch, pytestconfig):
+    """Collection and `-k`/`-m` selection read a case's id, category, platforms, applications and size without
+    making its instance (every xdist worker once made every instance only to deselect most); what they read is
+    what the made task says, and the task is the one `atomic_instances` makes."""
+    from types import SimpleNamespace
+
+    from jarvis_pytest.plugin import cases
+    from jarvis_pytest.plugin.runner import task_platforms
+    from jarvis_pytest.tasks import instances
+
+    repo_tasks = Path(__file__).resolve().parents[1] / "tasks"
+    expected = atomic_instances(load_library(repo_tasks), 3)
+    made = []
+    real = instances.atomic_task
+    monkeypatch.setattr(instances, "atomic_task", lambda t, n, **kw: made.append(n) or real(t, n, **kw))
+    params = cases.params("atomic", SimpleNamespace(library=repo_tasks, instances=3),
+                          pytestconfig)  # the application markers are declared on it
+    assert made == [] and len(params) == 3 * len(load_library(repo_tasks).templates)
+    for param, task in zip(params, expected, strict=True):
+        case = param.values[0]
+        assert param.id == case.id == task.id and case.category == task.category == "atomic"
+        assert case.platforms == list(task_platforms(task)) and case.size == len(task.formatted_subtasks)
+        assert case.apps == sorted({s.app for s in task.formatted_subtasks if s.app})
+        assert [m.name for m in param.marks] == [*case.platforms, "atomic",
+                                                 *(cases.app_marker(a) for a in case.apps)]
+        assert case.task.to_json() == task.to_json() and case.task is case.task  # made once
+    assert len(made) == len(params)

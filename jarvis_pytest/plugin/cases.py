@@ -1,10 +1,17 @@
 """Task cases for pytest: atomic instances of the template library and composed tasks of dataset files,
-each a `pytest.param` with a readable id and markers for platform, category and application."""
+each a `pytest.param` with a readable id and markers for platform, category and application.
+
+An atomic case is made lazily: what collection, `-k`/`-m` selection and scheduling read (id, category, platforms,
+applications, number of subtasks) comes from the template, and the instance itself (inputs drawn, every field
+rendered) is made on first use. Making every instance in every pytest process only to deselect most of them cost
+each xdist worker seconds of CPU at start (7.5 CPU-s for `--instances 48`).
+"""
 
 from __future__ import annotations
 
+import functools
 import re
-from typing import Any
+from typing import Any, Callable
 
 import pytest
 
@@ -20,26 +27,58 @@ def app_marker(app: str) -> str:
     return "app_" + re.sub(r"[^a-z0-9]+", "_", app.lower()).strip("_")
 
 
-def _param(task: Task) -> Any:
-    marks = [getattr(pytest.mark, p) for p in sorted({s.platform for s in task.formatted_subtasks})]
-    marks.append(getattr(pytest.mark, task.category))
-    for app in sorted({s.app for s in task.formatted_subtasks if s.app}):
-        marks.append(getattr(pytest.mark, app_marker(app)))
-    return pytest.param(task, id=task.id, marks=marks)
+class TaskCase:
+    """The parameter of a task case: its id, category, platforms, applications and number of subtasks, and the
+    `Task` (made on first use; a bad instance raises its `ConfigError` then)."""
+
+    __slots__ = ("id", "category", "platforms", "apps", "size", "_make", "_task")
+
+    def __init__(self, id: str, category: str, platforms: list[str], apps: list[str], size: int,
+                 make: Callable[[], Task]):
+        self.id, self.category, self.size = id, category, size
+        self.platforms, self.apps = sorted(set(platforms)), sorted(set(apps))
+        self._make, self._task = make, None
+
+    @classmethod
+    def of(cls, task: Task) -> "TaskCase":
+        """The case of a task already made (a composed task of a dataset file)."""
+        case = cls(task.id, task.category, [s.platform for s in task.formatted_subtasks],
+                   [s.app for s in task.formatted_subtasks if s.app], len(task.formatted_subtasks), lambda: task)
+        case._task = task
+        return case
+
+    @property
+    def task(self) -> Task:
+        if self._task is None:
+            self._task = self._make()
+        return self._task
+
+    def __repr__(self) -> str:
+        return f"TaskCase({self.id!r})"
+
+
+def _param(case: TaskCase) -> Any:
+    marks = [getattr(pytest.mark, p) for p in case.platforms]
+    marks.append(getattr(pytest.mark, case.category))
+    marks.extend(getattr(pytest.mark, app_marker(app)) for app in case.apps)
+    return pytest.param(case, id=case.id, marks=marks)
 
 
 def params(kind: str, options: JarvisOptions, config: pytest.Config) -> list[Any]:
-    """One param (a `Task` model) per atomic instance of every template under the library folder, or per
-    composed task of the dataset files; the application markers they use are declared first, so `-m app_...`
-    works quietly."""
+    """One param (a `TaskCase`) per atomic instance of every template under the library folder, or per composed
+    task of the dataset files; the application markers they use are declared first, so `-m app_...` works
+    quietly. The library's and datasets' files are read and checked now; atomic instances are made on use."""
     from jarvis_pytest.tasks.dataset import load_tasks
-    from jarvis_pytest.tasks.instances import atomic_instances
+    from jarvis_pytest.tasks.instances import atomic_task, instance_id
     from jarvis_pytest.tasks.library import load_library
 
     if kind == "atomic":
-        tasks = atomic_instances(load_library(options.library), options.instances)
+        library = load_library(options.library)
+        found = [TaskCase(instance_id(t.id, n), "atomic", [t.platform], [t.app] if t.app else [], 1,
+                          functools.partial(atomic_task, t, n, source=library.sources.get(t.id)))
+                 for t in library.templates for n in range(options.instances)]
     else:
-        tasks = load_tasks(options.datasets)
-    for app in sorted({s.app for t in tasks for s in t.formatted_subtasks if s.app}):
+        found = [TaskCase.of(t) for t in load_tasks(options.datasets)]
+    for app in sorted({app for c in found for app in c.apps}):
         config.addinivalue_line("markers", f"{app_marker(app)}: tasks of the application {app}")
-    return [_param(t) for t in tasks]
+    return [_param(c) for c in found]

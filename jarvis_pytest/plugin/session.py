@@ -37,10 +37,16 @@ def get(config: pytest.Config) -> "JarvisSession":
     return config.pluginmanager.get_plugin(PLUGIN_NAME)
 
 
+def _case_of(item: pytest.Item) -> cases.TaskCase | None:
+    """The case of a task item (None for other items, and for an empty parameter set)."""
+    case = getattr(getattr(item, "callspec", None), "params", {}).get("jarvis_task")
+    return case if isinstance(case, cases.TaskCase) else None
+
+
 def _task_of(item: pytest.Item) -> Task | None:
-    """The task of a task case (None for other items, and for an empty parameter set)."""
-    task = getattr(getattr(item, "callspec", None), "params", {}).get("jarvis_task")
-    return task if isinstance(task, Task) else None
+    """The task of a task item, made now if it was not yet (None for other items)."""
+    case = _case_of(item)
+    return case.task if case is not None else None
 
 
 def _sigterm_as_interrupt() -> None:
@@ -96,14 +102,14 @@ class JarvisSession:
                 raise pytest.UsageError(f"bad task data: {exc}") from None
         return self._params[kind]
 
-    def all_tasks(self) -> list[Task]:
+    def all_cases(self) -> list[cases.TaskCase]:
         return [p.values[0] for kind in ("atomic", "composed") for p in self.params(kind)]
 
     def start(self) -> None:
         """Everything that can be wrong is found now, once, before any device boots: the task data, the agent,
         its model endpoints (one real request each), the drive image, a run directory to resume."""
         agent = self.ensure_agent()
-        tasks = self.all_tasks()
+        found = self.all_cases()
         preflight = getattr(agent, "preflight", None)
         if preflight is not None:
             try:
@@ -125,7 +131,7 @@ class JarvisSession:
                                   field=f"--{platform}-backend", fix=backend.how_to_run or "choose another backend")
         key = agent_key(agent.config(), self.options.limits)
         if self.options.resume is not None:
-            self._check_resume(key, agent.config(), tasks)
+            self._check_resume(key, agent.config(), found)
         _check_engines(self.options.docker_hosts)
         _remove_orphans(self.options.docker_hosts)
         self.state = run_state.RunState(self.run_dir, redacted_argv(sys.argv[1:]), resumed=not self.new_run)
@@ -134,7 +140,7 @@ class JarvisSession:
                          engines=list(dict.fromkeys([*(self.state.meta.get("engines") or []),
                                                      *self.options.docker_hosts])))  # every session's, for cleanup
 
-    def _check_resume(self, key: str, agent_config: dict[str, Any], tasks: list[Task]) -> None:
+    def _check_resume(self, key: str, agent_config: dict[str, Any], found: list[cases.TaskCase]) -> None:
         run_dir = self.run_dir
         fix_new = "or start a new run (drop --resume)"
         if not run_state.is_run_dir(run_dir):
@@ -157,8 +163,11 @@ class JarvisSession:
         # A changed task is refused only where its kept result would be reused as if it were the new task's;
         # a task that errored, timed out or never ran is run again anyway, so fixing its setup is welcome.
         digests = run_state.read_plan(run_dir)["digests"]
-        changed = sorted(t.id for t in tasks if t.id in digests and digests[t.id] != run_state.task_digest(t)
-                         and _kept(read_result(run_dir, t.id), key))
+        try:  # only tasks with a kept result are made (and compared)
+            changed = sorted(c.id for c in found if c.id in digests and _kept(read_result(run_dir, c.id), key)
+                             and digests[c.id] != run_state.task_digest(c.task))
+        except ConfigError as exc:
+            raise pytest.UsageError(f"bad task data: {exc}") from None
         if changed:
             more = f" and {len(changed) - 3} more" if len(changed) > 3 else ""
             raise ConfigError(f"tasks with a result changed since the run was planned: "
@@ -174,14 +183,14 @@ class JarvisSession:
 
     def pytest_collection_modifyitems(self, session: pytest.Session, config: pytest.Config,
                                       items: list[pytest.Item]) -> None:
-        jarvis_items = [i for i in items if _task_of(i) is not None]
+        jarvis_items = [i for i in items if _case_of(i) is not None]
         if not jarvis_items:
             return
         if not self.options.agent:
             raise pytest.UsageError("choose an agent with --agent NAME (e.g. --agent oracle to check the tasks, "
                                     "--agent holo2 with --planner-base-url/--grounder-base-url for a model)")
         # Longest tasks first (more subtasks), ties by id: keeps xdist workers busy to the end, deterministic.
-        order = {id(i): (-len(_task_of(i).formatted_subtasks), i.nodeid) for i in jarvis_items}
+        order = {id(i): (-_case_of(i).size, i.nodeid) for i in jarvis_items}
         positions = [n for n, i in enumerate(items) if id(i) in order]
         for pos, item in zip(positions, sorted(jarvis_items, key=lambda i: order[id(i)])):
             items[pos] = item
@@ -191,7 +200,10 @@ class JarvisSession:
         the summary counts those never run). Every xdist worker collects the same items: each writes the same."""
         if self.config.option.collectonly or not self.options.agent:
             return
-        tasks = [t for t in map(_task_of, session.items) if t is not None]
+        try:  # the selected tasks are made now: a bad one is found before any device boots
+            tasks = [t for t in map(_task_of, session.items) if t is not None]
+        except ConfigError as exc:
+            raise pytest.UsageError(f"bad task data: {exc}") from None
         if tasks and (self.state is not None or not self.is_controller):
             run_state.merge_plan(self.run_dir, tasks)
         if tasks and self.options.docker_hosts:  # the images this process's tasks need, on its engine
@@ -238,8 +250,9 @@ class JarvisSession:
         self.next_platforms = task_platforms(task) if task is not None and self.options.prewarm else None
         yield
 
-    def run_case(self, request: pytest.FixtureRequest, task: Task) -> TaskResult:
+    def run_case(self, request: pytest.FixtureRequest, case: cases.TaskCase) -> TaskResult:
         agent = self.ensure_agent()
+        task = case.task
         reason = skip_reason(task, self.options.backends)
         if reason is not None:  # a device this machine lacks: skipped with the reason, counted apart, never failed
             result = TaskResult(task_id=task.id, category=task.category,

@@ -106,13 +106,24 @@ class PlannerGrounderAgent:
 
     def preflight(self) -> None:
         """Called once at start-up, before any device boots: one minimal real request per model proves its
-        endpoint, model name and key, or the run stops with one clear error saying which is wrong."""
-        for role, client in (("planner", self.planner), ("grounder", self.grounder.client)):
+        endpoint, model name and key, or the run stops with one clear error saying which is wrong (the planner's
+        first). Both requests are in flight together: start-up waits for the slower model, not for the sum."""
+        from concurrent.futures import ThreadPoolExecutor
+
+        def probe(client: Any) -> ConfigError | None:
             try:
                 client.probe()
             except ConfigError as exc:
+                return exc
+            return None
+
+        roles = (("planner", self.planner), ("grounder", self.grounder.client))
+        with ThreadPoolExecutor(len(roles)) as pool:
+            problems = list(pool.map(probe, [client for _, client in roles]))
+        for (role, _), exc in zip(roles, problems):
+            if exc is not None:
                 raise ConfigError(f"{role}: {exc.detail}", field=f"--{role}-{(exc.field or 'base_url').replace('_', '-')}",
-                                  fix=exc.fix) from None
+                                  fix=exc.fix)
 
     def reset(self, task: TaskContext) -> None:
         self.task = task
