@@ -130,6 +130,27 @@ def test_screenshot_is_the_desktop(device):
     assert max(ImageStat.Stat(img.convert("L")).stddev) > 5, "the screenshot is blank"
 
 
+ENCODE_CHECK = """
+import io, os
+from PIL import Image
+from jarvis_pytest.devices.ubuntu.server.screen import encode_png
+for w, h in ((1920, 1080), (1, 1), (7, 3), (333, 211)):
+    img = Image.frombytes("RGB", (w, h), os.urandom(w * h * 3))
+    back = Image.open(io.BytesIO(encode_png(img)))
+    assert back.mode == "RGB" and back.size == (w, h) and back.tobytes() == img.tobytes(), (w, h)
+    grey = img.convert("L")  # other modes are converted first
+    assert Image.open(io.BytesIO(encode_png(grey))).tobytes() == grey.convert("RGB").tobytes(), (w, h)
+print("same")
+"""
+
+
+def test_the_screenshot_encoder_keeps_every_pixel(device):
+    """The control server's own PNG writer, run where it runs: random images of several sizes decode (with
+    Pillow) to exactly their pixels."""
+    out = device.run(f"python3 -c '{ENCODE_CHECK}'")
+    assert out.returncode == 0 and out.stdout.strip() == "same", out
+
+
 def test_the_cursor_is_drawn_where_the_pointer_is(device):
     device.act(A.MoveTo(x=900, y=500))
     near = screen(device).crop((900, 500, 916, 520))
