@@ -28,6 +28,21 @@ def client(server, model="m1", **kw) -> ChatClient:
     return ChatClient(server.url, model, api_key=KEY, **kw)
 
 
+def test_a_server_that_records_nothing_answers_the_same():
+    """`record=False` (the throughput bench's: a long run would hold every screenshot sent) keeps no request and
+    answers as a recording server does, its usage estimate counting the images without decoding them."""
+    png = screenshot(64, 48)
+    messages = [user_message("what is this?", image_part(png), image_part(png))]
+    usages = []
+    for record in (True, False):
+        with FakeChatServer(api_key=KEY, models=("m1",), record=record) as srv:
+            srv.respond_with(lambda req: "seen", model="m1")
+            result = ChatClient(srv.url, "m1", api_key=KEY).chat(messages)
+            assert result.text == "seen" and srv.received == 1 and len(srv.requests) == (1 if record else 0)
+            usages.append(result.usage)
+    assert usages[0] == usages[1] and usages[0]["prompt_tokens"] == len("what is this?") // 4 + 200
+
+
 def test_answer_usage_and_request_shape(server):
     png = screenshot(64, 48)
     server.script(Reply("hello", usage={"prompt_tokens": 11, "completion_tokens": 2}), model="m1")

@@ -135,7 +135,7 @@ def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path) -> dict[
 
     latency = latency_ms / 1000
     run_dir = out_root / f"throughput-w{workers}-{uuid.uuid4().hex[:6]}"
-    fake = FakeChatServer(models=("planner", "grounder"))
+    fake = FakeChatServer(models=("planner", "grounder"), record=False)  # holding every request slowed long runs
     fake.respond_with(lambda req: planner_reply(req, latency), model="planner")
     fake.respond_with(lambda req: Reply(text='{"x": 500, "y": 500}', delay=latency), model="grounder")
     docker = client()

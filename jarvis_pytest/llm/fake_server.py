@@ -92,6 +92,10 @@ class RecordedRequest:
         """The text parts joined by newlines."""
         return "\n".join(p.get("text", "") for p in self.parts(role) if p.get("type") == "text")
 
+    def image_count(self) -> int:
+        """How many images the request carries (none decoded)."""
+        return sum(p.get("type") == "image_url" for p in self.parts())
+
     def images(self) -> list[bytes]:
         """The images of the request, decoded from their data URLs."""
         out = []
@@ -119,10 +123,12 @@ class FakeChatServer:
     """The loopback server; see the module docstring."""
 
     def __init__(self, responder: Responder | None = None, *, api_key: str | None = None,
-                 models: tuple[str, ...] = ("fake-model",)):
+                 models: tuple[str, ...] = ("fake-model",), record: bool = True):
         self.api_key = api_key
         self.models = tuple(models)
+        self.record = record  # False: `requests` stays empty (a long benchmark would hold every screenshot sent)
         self.requests: list[RecordedRequest] = []
+        self.received = 0  # requests received, recorded or not
         self._default = responder
         self._responders: dict[str | None, Responder] = {}
         self._queues: dict[str | None, deque[Reply | str]] = {}
@@ -189,7 +195,9 @@ class FakeChatServer:
     # -- answering ---------------------------------------------------------------------------------------------
     def _record(self, req: RecordedRequest) -> None:
         with self._lock:
-            self.requests.append(req)
+            self.received += 1
+            if self.record:
+                self.requests.append(req)
 
     def _choose(self, req: RecordedRequest) -> Reply | str:
         with self._lock:
@@ -205,13 +213,13 @@ class FakeChatServer:
 
     def _completion(self, req: RecordedRequest, reply: Reply) -> dict[str, Any]:
         prompt_chars = len(req.text())
-        usage = reply.usage or {"prompt_tokens": prompt_chars // 4 + 100 * len(req.images()),
+        usage = reply.usage or {"prompt_tokens": prompt_chars // 4 + 100 * req.image_count(),
                                 "completion_tokens": max(1, len(reply.text) // 4)}
         usage = {**usage, "total_tokens": usage.get("prompt_tokens", 0) + usage.get("completion_tokens", 0)}
         message: dict[str, Any] = {"role": "assistant", "content": reply.text}
         if reply.reasoning is not None:
             message["reasoning_content"] = reply.reasoning
-        return {"id": f"chatcmpl-fake-{len(self.requests)}", "object": "chat.completion", "created": 0,
+        return {"id": f"chatcmpl-fake-{self.received}", "object": "chat.completion", "created": 0,
                 "model": req.model, "choices": [{"index": 0, "message": message, "finish_reason": "stop"}],
                 "usage": usage}
 
