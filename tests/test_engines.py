@@ -2,11 +2,13 @@
 checked at start-up; a run of 4 real tasks under -n 2 with the local engine and a second, real `dockerd` of this
 machine (its own socket and data root: `jarvis engine extra 2`) puts each worker's tasks on its own engine, copies
 the images there first, and leaves nothing on either; a task network on the second engine carries a device's
-traffic to its drive and nothing else."""
+traffic to its drive and nothing else; the second engine is also used through its tcp:// and ssh:// URLs (an sshd
+of this machine on 127.0.0.1, the real `ssh` client and `docker system dial-stdio`)."""
 
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -22,6 +24,7 @@ REPO = Path(__file__).resolve().parents[1]
 LOCAL_URL = "unix:///var/run/docker.sock"
 TCP_PORT = 23752  # the second engine also answers on tcp://127.0.0.1:23752: the same engine through a tcp:// URL
 TCP_URL = f"tcp://127.0.0.1:{TCP_PORT}"
+SSH_PORT = 23722  # an sshd of the test's own, on 127.0.0.1 only
 TASKS = ["-k", "(mousepad-write_note or thunar-rename_file or terminal-count_matches or terminal-zip_folder) and seed0",
          "--instances", "1"]
 
@@ -135,3 +138,79 @@ def test_a_task_network_on_the_second_engine_is_closed_but_reaches_its_drive(sec
         env.close()
     cleanup(run_id, host=TCP_URL)
     assert _leftovers(second_engine, run_id) == [] and within_rules(env.network.name) == 0
+
+
+@pytest.fixture(scope="module")
+def ssh_engine(second_engine, tmp_path_factory):
+    """`ssh://root@127.0.0.1:23722`: an sshd of this machine (Debian's openssh-server, installed without starting
+    its service) on 127.0.0.1 only, with its own host key and one authorised key, whose sessions reach the second
+    engine (`SetEnv DOCKER_HOST`). The Docker SDK runs the real `ssh` client; the `ssh` first on PATH adds the
+    client settings (key, known host) a user keeps in ~/.ssh/config, so the machine's own are left alone."""
+    import os
+    import socket
+    import time
+
+    from jarvis_pytest.infra.engine import ensure_debian_packages
+
+    ensure_debian_packages(("sshd", "openssh-server"), start_services=False)
+    d = tmp_path_factory.mktemp("ssh")
+    for key in ("host", "client"):
+        subprocess.run(["ssh-keygen", "-q", "-t", "ed25519", "-N", "", "-f", str(d / key)], check=True)
+    (d / "authorized_keys").write_text((d / "client.pub").read_text())
+    (d / "sshd_config").write_text(
+        f"ListenAddress 127.0.0.1\nPort {SSH_PORT}\nHostKey {d / 'host'}\nAuthorizedKeysFile {d / 'authorized_keys'}\n"
+        "PermitRootLogin prohibit-password\nPasswordAuthentication no\nKbdInteractiveAuthentication no\n"
+        f"UsePAM no\nStrictModes no\nPidFile none\nSetEnv DOCKER_HOST={second_engine}\n")
+    host_key = " ".join((d / "host.pub").read_text().split()[:2])
+    (d / "known_hosts").write_text(f"[127.0.0.1]:{SSH_PORT} {host_key}\n")
+    (d / "ssh_config").write_text(
+        f"Host 127.0.0.1\n  IdentityFile {d / 'client'}\n  IdentitiesOnly yes\n  UserKnownHostsFile {d / 'known_hosts'}\n"
+        "  StrictHostKeyChecking yes\n  BatchMode yes\n")
+    (d / "bin").mkdir()
+    (d / "bin" / "ssh").write_text(f'#!/bin/sh\nexec /usr/bin/ssh -F {d / "ssh_config"} "$@"\n')
+    (d / "bin" / "ssh").chmod(0o755)
+    Path("/run/sshd").mkdir(exist_ok=True)  # sshd's privilege separation directory
+    sshd = subprocess.Popen([shutil.which("sshd"), "-D", "-e", "-f", str(d / "sshd_config")],
+                            stderr=open(d / "sshd.log", "w"))
+    deadline = time.monotonic() + 20
+    while True:
+        try:
+            socket.create_connection(("127.0.0.1", SSH_PORT), timeout=1).close()
+            break
+        except OSError:
+            assert sshd.poll() is None and time.monotonic() < deadline, (d / "sshd.log").read_text()
+            time.sleep(0.1)
+    path = os.environ["PATH"]
+    os.environ["PATH"] = f"{d / 'bin'}:{path}"
+    try:
+        yield f"ssh://root@127.0.0.1:{SSH_PORT}", d / "sshd.log"
+    finally:
+        os.environ["PATH"] = path
+        sshd.terminate()
+        sshd.wait(10)
+
+
+@pytest.mark.containers
+def test_a_device_on_the_second_engine_through_ssh(ssh_engine, second_engine):
+    """Through ssh://: the engine is found to run on this machine, a device boots on it (the second engine, as
+    its containers show), runs a command, and its task's resources are removed, with nothing left."""
+    import uuid
+
+    from jarvis_pytest.infra.cleanup import cleanup
+    from jarvis_pytest.infra.engine import client
+    from jarvis_pytest.infra.lifecycle import Lifecycle
+
+    ssh_engine, sshd_log = ssh_engine
+    run_id = f"test-engine-ssh-{uuid.uuid4().hex[:8]}"
+    engines.check_on_this_machine(ssh_engine)
+    env = Lifecycle(run_id, "test", docker_host=ssh_engine).boot(("ubuntu",))
+    try:
+        assert env.engine == ssh_engine
+        assert env.containers["ubuntu"].id in {c.id for c in client(host=second_engine).containers.list()}
+        res = env.devices["ubuntu"].run("echo through-ssh")
+        assert res.returncode == 0 and res.stdout.strip() == "through-ssh", res
+    finally:
+        env.close()
+    cleanup(run_id, host=ssh_engine)
+    assert _leftovers(second_engine, run_id) == [] and _leftovers(ssh_engine, run_id) == []
+    assert "Accepted publickey for root from 127.0.0.1" in sshd_log.read_text()  # it went through the sshd

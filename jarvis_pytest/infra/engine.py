@@ -78,8 +78,19 @@ def _ping(url: str | None = None) -> bool:
 APT_LOCK_WAIT = 600  # seconds apt waits for another apt or dpkg (unattended upgrades, another install) to finish
 
 
-def _apt_install(*packages: str) -> None:
-    """apt-get install, waiting (with a message) while another apt or dpkg holds the lock; one clear error."""
+POLICY_RC_D = Path("/usr/sbin/policy-rc.d")  # Debian's switch: exit 101 and packages start no service
+
+
+def _apt_install(*packages: str, start_services: bool = True) -> None:
+    """apt-get install, waiting (with a message) while another apt or dpkg holds the lock; one clear error.
+    `start_services=False`: what the packages would start (e.g. an sshd on every address) stays stopped."""
+    if not start_services and not POLICY_RC_D.exists():
+        POLICY_RC_D.write_text("#!/bin/sh\n# jarvis-pytest: no service starts while it installs packages\nexit 101\n")
+        POLICY_RC_D.chmod(0o755)
+        try:
+            return _apt_install(*packages)
+        finally:
+            POLICY_RC_D.unlink(missing_ok=True)
     env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
     lock = ["-o", f"DPkg::Lock::Timeout={APT_LOCK_WAIT}"]
     print(f"[engine] apt-get install {' '.join(packages)} (waits up to {APT_LOCK_WAIT // 60} min if another apt or "
@@ -95,14 +106,15 @@ def _apt_install(*packages: str) -> None:
                    "the command again" if held else "; check the network and the Debian mirror"))
 
 
-def ensure_debian_packages(*packages_by_command: tuple[str, str]) -> None:
-    """Install (command, package) pairs whose command is missing, when root; otherwise explain."""
+def ensure_debian_packages(*packages_by_command: tuple[str, str], start_services: bool = True) -> None:
+    """Install (command, package) pairs whose command is missing, when root; otherwise explain.
+    `start_services=False`: the packages' services are not started (Debian's policy-rc.d)."""
     missing = [pkg for cmd, pkg in packages_by_command if shutil.which(cmd) is None]
     if not missing:
         return
     if os.geteuid() != 0 or shutil.which("apt-get") is None:
         raise InfrastructureError(f"missing Debian packages {missing}; run: sudo apt-get install -y {' '.join(missing)}")
-    _apt_install(*missing)
+    _apt_install(*missing, start_services=start_services)
 
 
 def ensure_engine(wait_seconds: float = 60.0) -> None:
