@@ -279,8 +279,8 @@ def test_drag_swipe_and_double_click_move_and_maximise_a_window(device, http, no
     assert device.act(A.DragTo(start_x=x + 300, start_y=y + 10, x=x + 500, y=y + 160)).ok
     wait_for(lambda: window(http, "Notepad")["box"] == [x + 200, y + 150, w, h], what="the window dragged",
              url=device.base_url)
-    # 500 ms: Wine starts its window-move loop when it handles the press; on a loaded machine a 200 ms swipe was
-    # once over before that (CI, once in many runs: the window did not move)
+    # 500 ms, not 200: once in CI (loaded machine) the window was not where a 200 ms swipe should have put it;
+    # likely Wine's window-move loop, which starts when Wine handles the press, began after the swipe was over
     assert device.act(A.Swipe(x=x + 500, y=y + 160, dx=-100, dy=-50, duration=500)).ok
     wait_for(lambda: window(http, "Notepad")["box"] == [x + 100, y + 100, w, h],
              what=f"the window swiped from {[x + 200, y + 150, w, h]} to {[x + 100, y + 100, w, h]}",
