@@ -7,6 +7,7 @@ of this machine on 127.0.0.1, the real `ssh` client and `docker system dial-stdi
 
 from __future__ import annotations
 
+import contextlib
 import json
 import shutil
 import subprocess
@@ -93,6 +94,29 @@ def _leftovers(url: str | None, run_id: str) -> list[str]:
             + [v["Name"] for v in (api.volumes(filters=label) or {}).get("Volumes") or []])
 
 
+@contextlib.contextmanager
+def device_on(url: str, second_engine: str):
+    """An Ubuntu task environment booted through `url` (found to run on this machine), whose device is on the
+    second engine; afterwards closed and cleaned up through `url`, with nothing of it left on the second engine."""
+    import uuid
+
+    from jarvis_pytest.infra.cleanup import cleanup
+    from jarvis_pytest.infra.engine import client
+    from jarvis_pytest.infra.lifecycle import Lifecycle
+
+    run_id = f"test-engine2-{uuid.uuid4().hex[:8]}"
+    engines.check_on_this_machine(url)
+    env = Lifecycle(run_id, "test", docker_host=url).boot(("ubuntu",))
+    try:
+        assert env.engine == url
+        assert env.containers["ubuntu"].id in {c.id for c in client(host=second_engine).containers.list()}
+        yield env
+    finally:
+        env.close()
+    cleanup(run_id, host=url)
+    assert _leftovers(second_engine, run_id) == [] and _leftovers(url, run_id) == []
+
+
 @pytest.mark.containers
 def test_a_run_of_four_tasks_uses_both_engines_and_leaves_nothing(second_engine, tmp_path):
     cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", str(REPO / "tasks"), "--agent", "oracle",
@@ -116,28 +140,15 @@ def test_a_task_network_on_the_second_engine_is_closed_but_reaches_its_drive(sec
     """The second engine leaves the firewall alone (`--iptables=false`): the harness's own rules carry a device's
     traffic to its drive, and its default route is gone as on the first engine (read from routes, never probed
     outside). The engine is reached through its tcp:// URL here (the run above used its unix:// one)."""
-    import uuid
-
-    from jarvis_pytest.infra.cleanup import cleanup
     from jarvis_pytest.infra.egress import device_routes
-    from jarvis_pytest.infra.engine import client
-    from jarvis_pytest.infra.lifecycle import Lifecycle
 
-    run_id = f"test-engine2-{uuid.uuid4().hex[:8]}"
-    engines.check_on_this_machine(TCP_URL)
-    env = Lifecycle(run_id, "test", docker_host=TCP_URL).boot(("ubuntu",))
-    try:
-        assert env.engine == TCP_URL
-        assert env.containers["ubuntu"].id in {c.id for c in client(host=second_engine).containers.list()}
+    with device_on(TCP_URL, second_engine) as env:
         res = env.devices["ubuntu"].run("curl -s -o /dev/null -w '%{http_code}' --max-time 10 http://transfer:5244/")
         assert res.returncode == 0 and res.stdout.strip() in {"200", "401", "403"}, res
         routes = device_routes(env.containers["ubuntu"])
         assert routes and not any(r.startswith("default") for r in routes), routes
         assert all(r.split()[0].startswith("10.202.") for r in routes), routes  # its own address pool
-    finally:
-        env.close()
-    cleanup(run_id, host=TCP_URL)
-    assert _leftovers(second_engine, run_id) == [] and within_rules(env.network.name) == 0
+    assert within_rules(env.network.name) == 0
 
 
 @pytest.fixture(scope="module")
@@ -194,23 +205,8 @@ def ssh_engine(second_engine, tmp_path_factory):
 def test_a_device_on_the_second_engine_through_ssh(ssh_engine, second_engine):
     """Through ssh://: the engine is found to run on this machine, a device boots on it (the second engine, as
     its containers show), runs a command, and its task's resources are removed, with nothing left."""
-    import uuid
-
-    from jarvis_pytest.infra.cleanup import cleanup
-    from jarvis_pytest.infra.engine import client
-    from jarvis_pytest.infra.lifecycle import Lifecycle
-
-    ssh_engine, sshd_log = ssh_engine
-    run_id = f"test-engine-ssh-{uuid.uuid4().hex[:8]}"
-    engines.check_on_this_machine(ssh_engine)
-    env = Lifecycle(run_id, "test", docker_host=ssh_engine).boot(("ubuntu",))
-    try:
-        assert env.engine == ssh_engine
-        assert env.containers["ubuntu"].id in {c.id for c in client(host=second_engine).containers.list()}
+    url, sshd_log = ssh_engine
+    with device_on(url, second_engine) as env:
         res = env.devices["ubuntu"].run("echo through-ssh")
         assert res.returncode == 0 and res.stdout.strip() == "through-ssh", res
-    finally:
-        env.close()
-    cleanup(run_id, host=ssh_engine)
-    assert _leftovers(second_engine, run_id) == [] and _leftovers(ssh_engine, run_id) == []
     assert "Accepted publickey for root from 127.0.0.1" in sshd_log.read_text()  # it went through the sshd

@@ -229,4 +229,3 @@ def test_no_path_with_workers_selects_exactly_the_benchmark(tmp_path):
     out = proc.stdout + proc.stderr
     assert proc.returncode == 5 and "no tests ran" in out, out[-3000:]
     assert "PytestUnknownMarkWarning" not in out and "Unknown pytest.mark" not in out, out[-3000:]
-

@@ -10,6 +10,7 @@ and says in `run.json` and the summary how far it got; the next run removes what
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import sys
 from pathlib import Path
@@ -47,6 +48,15 @@ def _task_of(item: pytest.Item) -> Task | None:
     """The task of a task item, made now if it was not yet (None for other items)."""
     case = _case_of(item)
     return case.task if case is not None else None
+
+
+@contextlib.contextmanager
+def _task_data_checked():
+    """A bad task (its file, or an instance of it) stops the run with one clear usage error."""
+    try:
+        yield
+    except ConfigError as exc:
+        raise pytest.UsageError(f"bad task data: {exc}") from None
 
 
 def _sigterm_as_interrupt() -> None:
@@ -96,10 +106,8 @@ class JarvisSession:
     def params(self, kind: str) -> list[Any]:
         """The pytest params of the atomic or composed tasks (loaded once; a bad task file is a usage error)."""
         if kind not in self._params:
-            try:
+            with _task_data_checked():
                 self._params[kind] = cases.params(kind, self.options, self.config)
-            except ConfigError as exc:
-                raise pytest.UsageError(f"bad task data: {exc}") from None
         return self._params[kind]
 
     def all_cases(self) -> list[cases.TaskCase]:
@@ -163,11 +171,9 @@ class JarvisSession:
         # A changed task is refused only where its kept result would be reused as if it were the new task's;
         # a task that errored, timed out or never ran is run again anyway, so fixing its setup is welcome.
         digests = run_state.read_plan(run_dir)["digests"]
-        try:  # only tasks with a kept result are made (and compared)
+        with _task_data_checked():  # only tasks with a kept result are made (and compared)
             changed = sorted(c.id for c in found if c.id in digests and _kept(read_result(run_dir, c.id), key)
                              and digests[c.id] != run_state.task_digest(c.task))
-        except ConfigError as exc:
-            raise pytest.UsageError(f"bad task data: {exc}") from None
         if changed:
             more = f" and {len(changed) - 3} more" if len(changed) > 3 else ""
             raise ConfigError(f"tasks with a result changed since the run was planned: "
@@ -200,10 +206,8 @@ class JarvisSession:
         the summary counts those never run). Every xdist worker collects the same items: each writes the same."""
         if self.config.option.collectonly or not self.options.agent:
             return
-        try:  # the selected tasks are made now: a bad one is found before any device boots
+        with _task_data_checked():  # the selected tasks are made now: a bad one is found before any device boots
             tasks = [t for t in map(_task_of, session.items) if t is not None]
-        except ConfigError as exc:
-            raise pytest.UsageError(f"bad task data: {exc}") from None
         if tasks and (self.state is not None or not self.is_controller):
             run_state.merge_plan(self.run_dir, tasks)
         if tasks and self.options.docker_hosts:  # the images this process's tasks need, on its engine
