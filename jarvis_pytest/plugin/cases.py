@@ -42,10 +42,8 @@ class TaskCase:
     @classmethod
     def of(cls, task: Task) -> "TaskCase":
         """The case of a task already made (a composed task of a dataset file)."""
-        case = cls(task.id, task.category, [s.platform for s in task.formatted_subtasks],
+        return cls(task.id, task.category, [s.platform for s in task.formatted_subtasks],
                    [s.app for s in task.formatted_subtasks if s.app], len(task.formatted_subtasks), lambda: task)
-        case._task = task
-        return case
 
     @property
     def task(self) -> Task:
