@@ -1,6 +1,6 @@
 """Several Docker engines (`--docker-host`, `infra/engines.py`): the URLs and `[tool.jarvis] docker_hosts` are
 checked at start-up; a run of 4 real tasks under -n 2 with the local engine and a second, real `dockerd` of this
-machine (its own socket and data root: `jarvis engine extra 2`) puts each worker's tasks on its own engine, copies
+machine (its own socket and data root: `jarvis engine extra 2`, shared by the xdist workers) puts each worker's tasks on its own engine, copies
 the images there first, and leaves nothing on either; a task network on the second engine carries a device's
 traffic to its drive and nothing else; the second engine is also used through its tcp:// and ssh:// URLs (an sshd
 of this machine on 127.0.0.1, the real `ssh` client and `docker system dial-stdio`)."""
@@ -8,6 +8,7 @@ of this machine on 127.0.0.1, the real `ssh` client and `docker system dial-stdi
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import json
 import shutil
 import subprocess
@@ -63,23 +64,44 @@ def test_a_bad_engine_option_stops_the_run_before_anything_boots(tmp_path):
 
 
 @pytest.fixture(scope="module")
-def second_engine(device_images):
+def second_engine(device_images, tmp_path_factory):
+    """The second engine, shared by every xdist worker that runs tests of this module: the first to need it
+    starts it (unless it runs already), the last to be done with it stops it (if this session started it).
+    A user holds a shared lock on a file while it uses the engine: the one that can then lock it alone is last."""
+    from filelock import FileLock
+
     from jarvis_pytest.infra.engine import _ping, extra_engine_url, start_extra_engine, stop_extra_engine
     from jarvis_pytest.infra.images import image_tag
 
-    running = _ping(extra_engine_url(2))
-    if running and not _ping(TCP_URL):  # started before without its TCP listener: started again with it
-        stop_extra_engine(2)
-        running = False
+    shared = tmp_path_factory.getbasetemp().parent  # the session's folder under xdist
+    started_here = shared / "engine-2.started-here"
     bridges = {p.name for p in Path("/sys/class/net").iterdir()} & {"docker0"}  # the first engine's own bridge
-    url = start_extra_engine(2, tcp_port=TCP_PORT)  # fails loudly when it cannot start: never skipped
-    assert _ping(TCP_URL)
-    gone = bridges - {p.name for p in Path("/sys/class/net").iterdir()}
-    assert not gone, f"starting the second engine removed {gone} (the first engine's default bridge is docker0)"
-    engines.copy_images([url], [image_tag("ubuntu"), image_tag("transfer")])
+    with FileLock(str(shared / "engine-2.lock")):
+        running = _ping(extra_engine_url(2))
+        if running and not _ping(TCP_URL):  # started before without its TCP listener: started again with it
+            stop_extra_engine(2)
+            running = False
+        url = start_extra_engine(2, tcp_port=TCP_PORT)  # fails loudly when it cannot start: never skipped
+        if not running:
+            started_here.touch()
+        assert _ping(TCP_URL)
+        gone = bridges - {p.name for p in Path("/sys/class/net").iterdir()}
+        assert not gone, f"starting the second engine removed {gone} (the first engine's default bridge is docker0)"
+        engines.copy_images([url], [image_tag("ubuntu"), image_tag("transfer")])
+        using = open(shared / "engine-2.users", "a")
+        fcntl.flock(using, fcntl.LOCK_SH)
     yield url
-    if not running:  # started here: stopped here (its images stay in its data root for the next time)
-        stop_extra_engine(2)
+    with FileLock(str(shared / "engine-2.lock")):
+        using.close()  # this worker's shared lock goes with it
+        with open(shared / "engine-2.users", "a") as probe:
+            try:
+                fcntl.flock(probe, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                last = True
+            except OSError:
+                last = False  # another worker still uses the engine
+        if last and started_here.exists():  # its images stay in its data root for the next time
+            stop_extra_engine(2)
+            started_here.unlink()
     gone = bridges - {p.name for p in Path("/sys/class/net").iterdir()}
     assert not gone, f"the second engine removed {gone} (the first engine's default bridge is docker0)"
 
