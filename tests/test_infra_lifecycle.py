@@ -20,6 +20,7 @@ from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.infra.cleanup import cleanup
 from jarvis_pytest.infra.containers import LABEL_HOST, LABEL_PID, LABEL_PLATFORM, LABEL_ROLE, LABEL_RUN, LABEL_WORKER
 from jarvis_pytest.infra.lifecycle import Lifecycle, Limits
+from jarvis_pytest.infra.networks import attached
 from jarvis_pytest.infra.pool import Pool
 
 pytestmark = pytest.mark.containers
@@ -80,6 +81,32 @@ def test_names_are_unique_per_lifecycle_of_one_run_and_worker(standin_platforms,
     for e in envs:
         e.close()
     assert leftovers(lifecycle.run_id) == []
+
+
+def test_a_kept_network_is_reused_only_once_no_container_is_on_it(standin_platforms, lifecycle):
+    lc = Lifecycle(lifecycle.run_id, "gw2", keep_networks=1)
+    first = lc.boot(standin_platforms[:1])
+    second = lc.boot(standin_platforms[:1])  # while the first still runs: a network of its own
+    assert second.network.name != first.network.name
+    first.close()
+    assert leftovers(lc.run_id) == sorted([*(c.name for c in second.containers.values()), second.network.name,
+                                           first.network.name])  # kept, with its rule
+    assert within_rules(first.network.name) == 1
+    second.close()  # one is kept already: this one goes, its rule first
+    assert leftovers(lc.run_id) == [first.network.name] and within_rules(second.network.name) == 0
+    third = lc.boot(standin_platforms[:1])
+    assert third.network.name == first.network.name and lc.networks.created == 2
+    assert attached(third.network) == sorted(c.name for c in third.containers.values())
+    third.close()
+    stray = docker.from_env().containers.run(  # something still on the kept network: it must not be reused
+        "jarvis/transfer", ["sleep", "600"], name=f"{lc.run_id}-stray", network=third.network.name, detach=True,
+        labels={LABEL_RUN: lc.run_id})
+    fourth = lc.boot(standin_platforms[:1])
+    assert fourth.network.name not in (first.network.name, second.network.name) and lc.networks.created == 3
+    fourth.close()
+    lc.close()  # removes the network it kept (the fourth's); the stray's is not the lifecycle's any more
+    assert leftovers(lc.run_id) == sorted([stray.name, third.network.name])
+    assert within_rules(fourth.network.name) == 0
 
 
 def test_the_real_ubuntu_device_on_loopback(ubuntu_env):

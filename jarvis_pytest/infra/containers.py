@@ -128,9 +128,9 @@ def wait_until_ready(container: Any, check: Callable[[float], None], timeout: fl
 
 
 def remove_all(containers: list[Any], network: Any | None) -> list[str]:
-    """Remove containers (in parallel, with their anonymous volumes), then the network (its firewall rule
-    first, `egress.close_within`, then its bridge); what is already gone is fine. Returns what could not be
-    removed (empty when all went), so callers can say so instead of raising in `finally` blocks.
+    """Remove containers (in parallel, with their anonymous volumes), then the network (`networks.remove_network`:
+    its firewall rule, then its bridge); what is already gone is fine. Returns what could not be removed (empty
+    when all went), so callers can say so instead of raising in `finally` blocks.
     """
     import docker.errors
 
@@ -150,17 +150,9 @@ def remove_all(containers: list[Any], network: Any | None) -> list[str]:
         results = [remove(c) for c in containers]
     problems = [p for p in results if p]
     if network is not None:
-        egress.close_within(network.name)  # its firewall rule first: no rule ever names a bridge that is gone
-        for attempt in range(5):  # a container removal racing ours may keep the network busy for a moment
-            try:
-                network.remove()
-                break
-            except docker.errors.NotFound:
-                break
-            except Exception as exc:
-                if attempt == 4:
-                    problems.append(f"network {network.name}: {exc}")
-                time.sleep(0.2)
+        from jarvis_pytest.infra.networks import remove_network
+
+        problems += remove_network(network)
     return problems
 
 
@@ -193,8 +185,6 @@ class BootedDevice:
 def boot_container(backend: "Backend", request: BootRequest) -> BootedDevice:
     """The default boot of a backend: one container of its image on the task network, its control port published
     on 127.0.0.1, no way out unless egress is allowed, then `wait_ready` while the container is watched."""
-    from jarvis_pytest.infra import egress
-
     options = dict(backend.container_options)
     if request.volumes:
         options["volumes"] = {**options.get("volumes", {}), **request.volumes}

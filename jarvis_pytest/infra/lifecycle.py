@@ -1,13 +1,15 @@
 """The containers and network of one task: a fresh device per platform and a transfer drive on a private network.
 
-`Lifecycle(run_id, worker).boot(("ubuntu",))` creates a Docker network for the task (closed to everything but
-its own members unless egress is allowed: `infra/egress.py`), starts the transfer drive on it under the alias
+`Lifecycle(run_id, worker).boot(("ubuntu",))` takes a Docker network for the task (closed to everything but
+its own members unless egress is allowed: `infra/egress.py`; new, or one a finished task of this worker left
+empty: `infra/networks.py`), starts the transfer drive on it under the alias
 `transfer` (devices reach it at `http://transfer:5244`) and one device per platform through its backend
 (`devices/backend.py`), all in parallel, and returns a `TaskEnvironment` once every device and the drive answer.
 Ports are published on 127.0.0.1 only. A backend that mounts the drive's storage (`Backend.drive_mount`, e.g.
 the Windows `S:` drive) shares a volume of the task with the drive. A failed boot removes what it created and
-raises `InfrastructureError` with the failing container's logs. `TaskEnvironment.close()` removes it all. One
-`Lifecycle` per worker process; names are unique per run, worker and instance.
+raises `InfrastructureError` with the failing container's logs. `TaskEnvironment.close()` removes it all (its
+network it gives back, for reuse or removal). One `Lifecycle` per worker process, closed at the end
+(`Lifecycle.close`, which removes the networks it kept); names are unique per run, worker and instance.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.infra import containers as ctr
 from jarvis_pytest.infra import egress as egress_policy
 from jarvis_pytest.infra import engines
+from jarvis_pytest.infra.networks import TaskNetworks, remove_network
 from jarvis_pytest.infra.transfer import TransferClient
 from jarvis_pytest.infra.transfer_server import (TRANSFER_ALIAS, TRANSFER_PASSWORD, TRANSFER_USER, TransferServer,
                                                  transfer_server)
@@ -51,7 +54,7 @@ class TaskEnvironment:
     devices: dict[str, Device]            # platform → host-side device client
     transfer: TransferClient              # host-side client of the drive, on its 127.0.0.1 port
     image_ids: dict[str, str]             # role (platform or "transfer") → image id, for the results
-    network: Any                          # the task's Docker network
+    network: Any                          # the task's Docker network (of `networks`, which it goes back to)
     containers: dict[str, Any]            # role → Docker container
     urls: dict[str, str] = field(default_factory=dict)  # role → http://127.0.0.1:<port>
     run_id: str = ""
@@ -62,6 +65,7 @@ class TaskEnvironment:
     engine: str = engines.LOCAL           # the Docker engine it runs on (`infra/engines.py`)
     worker: str = ""                      # the xdist worker (gw0, …; main without xdist) it was booted for
     boot_started: float = 0.0             # wall-clock time (time.time()) its boot began
+    networks: TaskNetworks | None = None  # where its network came from (None: removed with it)
     _booted: list[Any] = field(default_factory=list)
     _closed: bool = False
 
@@ -75,7 +79,8 @@ class TaskEnvironment:
         return "\n".join(lines)
 
     def close(self) -> None:
-        """Close the clients and remove the devices, the drive, the network and volumes (idempotent; never raises)."""
+        """Close the clients, remove the devices, the drive and volumes, and give the network back (idempotent;
+        never raises)."""
         if self._closed:
             return
         self._closed = True
@@ -92,7 +97,8 @@ class TaskEnvironment:
                 problems.append(f"{booted.backend.label}: {exc}")
         owned = {id(b.container) for b in self._booted}
         rest = [c for c in self.containers.values() if id(c) not in owned]
-        problems += ctr.remove_all(rest, self.network)
+        problems += ctr.remove_all(rest, None)
+        problems += self.networks.give_back(self.network) if self.networks else remove_network(self.network)
         problems += _remove_volumes(self.volumes)
         if problems:
             print(f"[jarvis] could not remove {'; '.join(problems)}; run `jarvis cleanup --run {self.run_id}`",
@@ -115,11 +121,12 @@ class Lifecycle:
 
     `backends` chooses a backend per platform by name (e.g. {"windows": "wine"}); others get their default.
     `egress` opens the task networks (recorded in results); by default they are closed (`infra/egress.py`).
+    `keep_networks` networks of finished tasks are kept for later ones (`infra/networks.py`); `close` removes them.
     """
 
     def __init__(self, run_id: str, worker: str = "main", limits: Limits | None = None,
                  transfer: str | None = None, backends: dict[str, str] | None = None, egress: bool = False,
-                 docker_host: str | None = None):
+                 docker_host: str | None = None, keep_networks: int = 0):
         from jarvis_pytest.infra.engine import client
 
         self.docker_host = docker_host  # the engine of every environment this makes (None: the local engine)
@@ -135,6 +142,15 @@ class Lifecycle:
         self._ensure_image(self.server.image, pull=not self.server.built_here)
         if not egress:
             egress_policy.ensure_rules()
+        self.networks = TaskNetworks(self.docker, run_id, worker, egress, keep=keep_networks)
+
+    def close(self) -> None:
+        """Remove the networks kept for later tasks (idempotent; environments still out are their holders' to
+        close, and then remove their networks)."""
+        problems = self.networks.close()
+        if problems:
+            print(f"[jarvis] could not remove {'; '.join(problems)}; run `jarvis cleanup --run {self.run_id}`",
+                  file=sys.stderr, flush=True)
 
     def backend(self, platform: str) -> Backend:
         return backend_for(platform, self.choices.get(platform))
@@ -162,19 +178,6 @@ class Lifecycle:
             self._counter += 1
             return f"{self._prefix}-{self._counter}"
 
-    def _network(self, name: str) -> Any:
-        try:
-            network = self.docker.networks.create(name, driver="bridge",
-                                                  options=egress_policy.network_options(name, self.egress),
-                                                  labels=ctr.labels(self.run_id, self.worker, "network"))
-            if not self.egress:
-                egress_policy.open_within(name)
-            return network
-        except Exception as exc:
-            hint = (" — Docker ran out of address pools, most likely networks left by crashed runs: run "
-                    "`jarvis cleanup`" if "address pool" in str(exc) else "")
-            raise InfrastructureError(f"cannot create network {name}: {exc}{hint}") from exc
-
     def _drive_volume(self, name: str) -> Any:
         return self.docker.volumes.create(f"{name}-drive", labels=ctr.labels(self.run_id, self.worker, "volume"))
 
@@ -191,7 +194,7 @@ class Lifecycle:
                 raise InfrastructureError(f"the {b.label} device cannot run on this machine: {why}")
         base = self._next_name()
         boot_started = time.time()
-        network = self._network(base)
+        network = self.networks.take(base)
         volumes: list[Any] = []
         stop = threading.Event()
         started: list[Any] = []                       # every container made, by any thread
@@ -259,7 +262,8 @@ class Lifecycle:
             devices = {p: backends[p].connect(booted[p].url) for p in platforms}
         except BaseException:
             stop.set()
-            ctr.remove_all(list(started), network)  # everything made, also while we were removing
+            ctr.remove_all(list(started), None)  # everything made, also while we were removing
+            self.networks.give_back(network, reuse=False)
             _remove_volumes(volumes)
             for client in clients.values():
                 client.close()
@@ -274,4 +278,5 @@ class Lifecycle:
                                backends={p: b.label for p, b in backends.items()},
                                stand_ins=tuple(p for p, b in backends.items() if b.stand_in),
                                egress=self.egress, volumes=volumes, _booted=list(booted.values()),
-                               engine=engines.name(self.docker_host), worker=self.worker, boot_started=boot_started)
+                               engine=engines.name(self.docker_host), worker=self.worker, boot_started=boot_started,
+                               networks=self.networks)

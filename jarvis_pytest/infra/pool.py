@@ -22,7 +22,8 @@ class Pool:
     environment of the same platform set when there is one (waiting for it to finish booting) and boots one
     synchronously otherwise; a pre-warmed boot that failed is retried once, synchronously, so its error is the
     one raised. Handed-out environments are the caller's to close. `close` (also run at interpreter exit)
-    removes every environment not handed out. Thread-based: one background boot at a time.
+    removes every environment not handed out and the networks the lifecycle kept. Thread-based: one background
+    boot at a time.
     """
 
     def __init__(self, lifecycle: Lifecycle, enabled: bool = True):
@@ -77,4 +78,5 @@ class Pool:
             except Exception:
                 pass  # a failed boot removed what it made
         self._executor.shutdown(wait=True)
+        self.lifecycle.close()
         atexit.unregister(self.close)

@@ -1,0 +1,113 @@
+"""Task networks: each live task has a private Docker bridge of its own, closed to everything else
+(`infra/egress.py`). A worker may keep the networks of its finished tasks for its next ones.
+
+Creating and removing a bridge costs the engine about 40 firewall calls, a bridge interface and a quarter of a
+second of wall time per task (`jarvis bench throughput` counts it). So `TaskNetworks(keep=N)` keeps up to N
+networks whose task has ended. It hands one out again only once the engine lists no container on it. At any
+moment, then, a network holds the containers of at most one task, as a new network would. What is not kept is
+removed: the network's firewall rule first, then its bridge. `close` removes the kept ones. A worker that is
+killed leaves them to `jarvis cleanup`: they carry the labels and process id of their worker, like the devices.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from typing import Any
+
+from jarvis_pytest.errors import InfrastructureError
+from jarvis_pytest.infra import containers as ctr
+from jarvis_pytest.infra import egress as egress_policy
+
+
+def create_network(docker: Any, name: str, run_id: str, worker: str, egress: bool) -> Any:
+    """A new task network `name`: a bridge with this process's labels, closed unless `egress`."""
+    try:
+        network = docker.networks.create(name, driver="bridge", options=egress_policy.network_options(name, egress),
+                                         labels=ctr.labels(run_id, worker, "network"))
+        if not egress:
+            egress_policy.open_within(name)
+        return network
+    except Exception as exc:
+        hint = (" — Docker ran out of address pools, most likely networks left by crashed runs: run "
+                "`jarvis cleanup`" if "address pool" in str(exc) else "")
+        raise InfrastructureError(f"cannot create network {name}: {exc}{hint}") from exc
+
+
+def remove_network(network: Any) -> list[str]:
+    """Remove a task network: its firewall rule first (no rule ever names a bridge that is gone), then the
+    bridge. What is already gone is fine. Returns what could not be removed."""
+    import docker.errors
+
+    egress_policy.close_within(network.name)
+    for attempt in range(5):  # a container removal racing ours may keep the network busy for a moment
+        try:
+            network.remove()
+            return []
+        except docker.errors.NotFound:
+            return []
+        except Exception as exc:
+            if attempt == 4:
+                return [f"network {network.name}: {exc}"]
+            time.sleep(0.2)
+    return []
+
+
+def attached(network: Any) -> list[str]:
+    """The names of the containers the engine lists on `network` now (a network that is gone has none)."""
+    import docker.errors
+
+    try:
+        network.reload()
+    except docker.errors.NotFound:
+        return []
+    return sorted(c.get("Name", cid) for cid, c in (network.attrs.get("Containers") or {}).items())
+
+
+class TaskNetworks:
+    """The task networks of one worker's `Lifecycle`: `take` one for a task, `give_back` it when the task's
+    containers are gone, `close` at the end. Thread-safe (a pre-warm boots in a thread of its own)."""
+
+    def __init__(self, docker: Any, run_id: str, worker: str, egress: bool, keep: int = 0):
+        self.docker, self.run_id, self.worker, self.egress = docker, run_id, worker, egress
+        self.keep = keep  # networks kept for later tasks, at most (0: every network is removed with its task)
+        self._free: list[Any] = []
+        self._lock = threading.Lock()
+        self._closed = False
+        self.created = 0  # networks this created, for tests and benchmarks
+
+    def take(self, name: str) -> Any:
+        """A network no container is on: a kept one (the oldest), else a new one named `name`."""
+        while True:
+            with self._lock:
+                network = self._free.pop(0) if self._free else None
+            if network is None:
+                break
+            on_it = attached(network)
+            if not on_it:
+                return network
+            print(f"[jarvis] network {network.name} still has {', '.join(on_it)} on it: not reused",
+                  file=sys.stderr, flush=True)
+        network = create_network(self.docker, name, self.run_id, self.worker, self.egress)
+        with self._lock:
+            self.created += 1
+        return network
+
+    def give_back(self, network: Any, reuse: bool = True) -> list[str]:
+        """Keep `network` for a later task when `reuse`, no container is on it and fewer than `keep` are kept;
+        else remove it. Returns what could not be removed."""
+        if reuse and self.keep > 0 and not attached(network):
+            with self._lock:
+                if not self._closed and len(self._free) < self.keep:
+                    self._free.append(network)
+                    return []
+        return remove_network(network)
+
+    def close(self) -> list[str]:
+        """Remove the kept networks; later `give_back`s remove theirs (idempotent). Returns what could not be
+        removed."""
+        with self._lock:
+            self._closed = True
+            free, self._free = self._free, []
+        return [p for network in free for p in remove_network(network)]
