@@ -15,6 +15,7 @@ from typing import Any, Callable
 from jarvis_pytest.devices.actions import MoveTo
 from jarvis_pytest.infra.cleanup import cleanup
 from jarvis_pytest.infra.lifecycle import Lifecycle, Limits
+from jarvis_pytest.infra.networks import KEEP_PER_WORKER
 from jarvis_pytest.infra.pool import Pool
 
 TARGETS_MS = {"cold_start_ms": 3000, "screenshot_ms": 50, "action_ms": 20}  # DESIGN.md §6; p50
@@ -46,9 +47,10 @@ def idle_memory_mb(container: Any) -> float:
 
 
 def measure(platform: str = "ubuntu", repeat: int = 5, samples: int = 30, idle_seconds: float = 5.0) -> dict:
-    """Boot `repeat` environments cold and `repeat` from a pre-warmed pool; time observations and actions."""
+    """Boot `repeat` environments cold and `repeat` from a pre-warmed pool; time observations and actions. The
+    lifecycle keeps task networks for later tasks as a run's workers do, so a cold start takes a kept network."""
     run_id = f"bench-{uuid.uuid4().hex[:6]}"
-    lifecycle = Lifecycle(run_id, "bench", Limits())
+    lifecycle = Lifecycle(run_id, "bench", Limits(), keep_networks=KEEP_PER_WORKER)
     key = (platform,)
     try:
         cold, teardown = [], []
@@ -78,6 +80,7 @@ def measure(platform: str = "ubuntu", repeat: int = 5, samples: int = 30, idle_s
         finally:
             env.close()
     finally:
+        lifecycle.close()
         cleanup(run_id)
     return {"platform": platform, "screen": [first.width, first.height], "cold_start_ms": summary(cold),
             "reset_ms": summary(reset), "teardown_ms": summary(teardown), "screenshot_ms": summary(shots),

@@ -20,6 +20,10 @@ from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.infra import containers as ctr
 from jarvis_pytest.infra import egress as egress_policy
 
+# Networks a worker keeps for its next tasks: the one its finished task leaves while the next task runs and the
+# one after is pre-warmed.
+KEEP_PER_WORKER = 2
+
 
 def create_network(docker: Any, name: str, run_id: str, worker: str, egress: bool) -> Any:
     """A new task network `name`: a bridge with this process's labels, closed unless `egress`."""

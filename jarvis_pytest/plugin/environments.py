@@ -13,19 +13,15 @@ def configure_backends(options: JarvisOptions) -> None:
         configure(serial=options.android_serial, image=options.android_image)
 
 
-# Task networks a worker keeps for its next tasks: the one its finished task leaves while the next task runs and
-# the one after is pre-warmed (`infra/networks.py`). A network is reused only once no container is on it.
-KEEP_NETWORKS = 2
-
-
 def make_environments(options: JarvisOptions, *, run_id: str, worker: str):
     """A pool that boots (and pre-warms) the devices of each task; `acquire(platforms)`, `prewarm`, `close`."""
     from jarvis_pytest.infra.engines import for_worker
     from jarvis_pytest.infra.lifecycle import Lifecycle, Limits
+    from jarvis_pytest.infra.networks import KEEP_PER_WORKER
     from jarvis_pytest.infra.pool import Pool
 
     configure_backends(options)
     lifecycle = Lifecycle(run_id, worker, Limits(memory=options.device_memory, cpus=options.device_cpus),
                           transfer=options.transfer, backends=options.backends, egress=options.allow_egress,
-                          docker_host=for_worker(options.docker_hosts, worker), keep_networks=KEEP_NETWORKS)
+                          docker_host=for_worker(options.docker_hosts, worker), keep_networks=KEEP_PER_WORKER)
     return Pool(lifecycle, enabled=options.prewarm)
