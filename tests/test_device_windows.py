@@ -523,8 +523,9 @@ def test_a_device_without_the_drive_has_no_s_and_boots_cold(docker):
         assert httpx.put(f"{b.url}/files", params={"path": r"S:\x.txt"}, content=b"x").status_code in (403, 404)
     finally:
         from jarvis_pytest.infra.containers import remove_all
+        from jarvis_pytest.infra.networks import remove_network
 
-        assert not remove_all(request.started, net)
+        assert not remove_all(request.started) and not remove_network(net)
 
 
 def test_killing_the_desktop_restarts_the_wine_session(booted, device, http):

@@ -72,7 +72,7 @@ class Backend:
         """Remove what `boot` made; returns what could not be removed (default: the container)."""
         from jarvis_pytest.infra.containers import remove_all
 
-        return remove_all([booted.container], None)
+        return remove_all([booted.container])
 
 
 # platform → backend name → "module:attribute", imported on first use; the first that can run is the default

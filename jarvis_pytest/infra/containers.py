@@ -127,11 +127,10 @@ def wait_until_ready(container: Any, check: Callable[[float], None], timeout: fl
             raise _failure(container, f"{what}: {exited(container)}")
 
 
-def remove_all(containers: list[Any], network: Any | None) -> list[str]:
-    """Remove containers (in parallel, with their anonymous volumes), then the network (`networks.remove_network`:
-    its firewall rule, then its bridge); what is already gone is fine. Returns what could not be removed (empty
-    when all went), so callers can say so instead of raising in `finally` blocks.
-    """
+def remove_all(containers: list[Any]) -> list[str]:
+    """Remove containers (in parallel, with their anonymous volumes); what is already gone is fine. Returns what
+    could not be removed (empty when all went), so callers can say so instead of raising in `finally` blocks.
+    A task's network goes with `networks.remove_network` (or back to the worker's `TaskNetworks`)."""
     import docker.errors
 
     def remove(c: Any) -> str | None:
@@ -148,12 +147,7 @@ def remove_all(containers: list[Any], network: Any | None) -> list[str]:
             results = list(pool.map(remove, containers))
     except RuntimeError:  # at interpreter exit (atexit hooks) no new threads may be scheduled
         results = [remove(c) for c in containers]
-    problems = [p for p in results if p]
-    if network is not None:
-        from jarvis_pytest.infra.networks import remove_network
-
-        problems += remove_network(network)
-    return problems
+    return [p for p in results if p]
 
 
 @dataclass

@@ -97,7 +97,7 @@ class TaskEnvironment:
                 problems.append(f"{booted.backend.label}: {exc}")
         owned = {id(b.container) for b in self._booted}
         rest = [c for c in self.containers.values() if id(c) not in owned]
-        problems += ctr.remove_all(rest, None)
+        problems += ctr.remove_all(rest)
         problems += self.networks.give_back(self.network) if self.networks else remove_network(self.network)
         problems += _remove_volumes(self.volumes)
         if problems:
@@ -255,14 +255,14 @@ class Lifecycle:
                 errors = [f.exception() for f in futures if f in done and f.exception() is not None]
                 if errors:
                     stop.set()
-                    ctr.remove_all(list(started), None)  # makes the other boot threads fail fast
+                    ctr.remove_all(list(started))  # makes the other boot threads fail fast
                     raise errors[0]
             finally:
                 executor.shutdown(wait=True, cancel_futures=True)
             devices = {p: backends[p].connect(booted[p].url) for p in platforms}
         except BaseException:
             stop.set()
-            ctr.remove_all(list(started), None)  # everything made, also while we were removing
+            ctr.remove_all(list(started))  # everything made, also while we were removing
             self.networks.give_back(network, reuse=False)
             _remove_volumes(volumes)
             for client in clients.values():

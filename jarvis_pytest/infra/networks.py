@@ -1,12 +1,13 @@
 """Task networks: each live task has a private Docker bridge of its own, closed to everything else
 (`infra/egress.py`). A worker may keep the networks of its finished tasks for its next ones.
 
-Creating and removing a bridge costs the engine about 40 firewall calls, a bridge interface and a quarter of a
-second of wall time per task (`jarvis bench throughput` counts it). So `TaskNetworks(keep=N)` keeps up to N
-networks whose task has ended. It hands one out again only once the engine lists no container on it. At any
-moment, then, a network holds the containers of at most one task, as a new network would. What is not kept is
-removed: the network's firewall rule first, then its bridge. `close` removes the kept ones. A worker that is
-killed leaves them to `jarvis cleanup`: they carry the labels and process id of their worker, like the devices.
+Creating and removing a bridge costs the engine about 40 firewall calls and a bridge interface: here a boot and
+close of an Ubuntu environment took 1.61 s with a new network and 1.39 s with a kept one. So
+`TaskNetworks(keep=N)` keeps up to N networks whose task has ended. It hands one out again only once the engine
+lists no container on it. At any moment, then, a network holds the containers of at most one task, as a new
+network would. What is not kept is removed: the network's firewall rule first, then its bridge. `close` removes
+the kept ones. A worker that is killed leaves them to `jarvis cleanup`: they carry the labels and process id of
+their worker, like the devices.
 """
 
 from __future__ import annotations
