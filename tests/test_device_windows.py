@@ -528,21 +528,31 @@ def test_a_device_without_the_drive_has_no_s_and_boots_cold(docker):
         assert not remove_all(request.started) and not remove_network(net)
 
 
-def test_killing_the_desktop_restarts_the_wine_session(booted, device, http):
+def test_killing_the_desktop_restarts_the_wine_session(booted, device):
     """`taskkill /im explorer.exe` ends Wine's desktop, which Wine cannot draw again: the device's watchdog starts
     the Wine session anew (programs that ran are gone) and the device is ready again within seconds."""
-    from jarvis_pytest.devices.desktop import wait_ready
+    from jarvis_pytest.devices.desktop import DesktopDevice, wait_ready
 
+    def servers() -> set[str]:  # the control server's processes in the device (pids)
+        return {p[0] for p in booted.container.top(ps_args="-eo pid,args")["Processes"]
+                if "jarvis_pytest.devices.windows.server" in p[1]}
+
+    old = servers()
+    assert old
     try:
         device.run("taskkill /f /im explorer.exe", timeout=5)
     except Exception:  # the session restart may take the server down with the command
         pass
     logs = lambda: booted.container.logs().decode("utf-8", "replace")  # noqa: E731
     wait_for(lambda: "restarting the Wine session" in logs(), 10, "the watchdog restarting Wine")
+    # The old server says ready (readiness sticks once reached) until the restart ends it: wait for its end.
+    wait_for(lambda: not old & servers(), 30, "the old control server to end")
     wait_until_ready(booted.container, lambda seconds: wait_ready(booted.url, seconds), 60, "windows device")
-    assert device.launch("notepad")
-    assert window(http, "Notepad")
-    device.run("taskkill /f /im notepad.exe")
+    with DesktopDevice(booted.url, platform="windows") as again, \
+            httpx.Client(base_url=booted.url, timeout=60) as fresh:  # no connection of the old server's
+        assert again.launch("notepad")
+        assert window(fresh, "Notepad")
+        again.run("taskkill /f /im notepad.exe")
 
 
 def test_transfer_from_windows_to_ubuntu_through_the_drive(docker, lifecycle):
