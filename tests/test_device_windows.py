@@ -241,9 +241,22 @@ def save_as(device, http, path: str, utf8: bool) -> None:
         wait_for(lambda: find(device.a11y_tree()["tree"], lambda n: n.get("text") == "Unicode (UTF-8)"),
                  what="UTF-8 chosen")
     name = find(dialog, lambda n: n.get("class") == "Edit" and n.get("text") == "*.txt")
-    click(device, name["box"])
-    device.act(A.Hotkey(keys=["ctrl", "a"]))
-    assert device.act(A.Typing(text=path + "\n")).ok
+
+    def field_holds_path() -> bool:
+        return bool(find(device.a11y_tree()["tree"], lambda n: n.get("class") == "Edit" and n.get("text") == path))
+
+    for attempt in range(2):  # under load Wine may take Ctrl+A before the click gave the field focus: then the
+        click(device, name["box"])  # path lands after "*.txt" and Save As refuses it; the field is read first
+        device.act(A.Hotkey(keys=["ctrl", "a"]))
+        assert device.act(A.Typing(text=path)).ok
+        deadline = time.monotonic() + 5
+        while not field_holds_path() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        if field_holds_path():
+            break
+    else:
+        wait_for(field_holds_path, 1, f"the file name field holding {path}", str(http.base_url))
+    assert device.act(A.Hotkey(keys=["enter"])).ok
 
 
 def test_typing_is_exact_and_notepad_saves_it_through_its_save_as_dialog(device, http, notepad):
