@@ -1,9 +1,10 @@
 """Several Docker engines (`--docker-host`, `infra/engines.py`): the URLs and `[tool.jarvis] docker_hosts` are
 checked at start-up; a run of 4 real tasks under -n 2 with the local engine and a second, real `dockerd` of this
-machine (its own socket and data root: `jarvis engine extra 2`, shared by the xdist workers) puts each worker's tasks on its own engine, copies
-the images there first, and leaves nothing on either; a task network on the second engine carries a device's
-traffic to its drive and nothing else; the second engine is also used through its tcp:// and ssh:// URLs (an sshd
-of this machine on 127.0.0.1, the real `ssh` client and `docker system dial-stdio`)."""
+machine (its own socket and data root: `jarvis engine extra 2`, shared by the xdist workers) puts each worker's
+tasks on its own engine, copies the images there first, and leaves nothing on either; a task network on the
+second engine carries a device's traffic to its drive and nothing else; the second engine is also used through
+its tcp:// and ssh:// URLs (an sshd of this machine on 127.0.0.1, the real `ssh` client and `docker system
+dial-stdio`)."""
 
 from __future__ import annotations
 
