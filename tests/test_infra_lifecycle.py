@@ -88,25 +88,125 @@ def test_a_kept_network_is_reused_only_once_no_container_is_on_it(standin_platfo
     first = lc.boot(standin_platforms[:1])
     second = lc.boot(standin_platforms[:1])  # while the first still runs: a network of its own
     assert second.network.name != first.network.name
+    first_drive = first.containers["transfer"]
     first.close()
     assert leftovers(lc.run_id) == sorted([*(c.name for c in second.containers.values()), second.network.name,
-                                           first.network.name])  # kept, with its rule
+                                           first.network.name, first_drive.name])  # kept, with its rule and drive
     assert within_rules(first.network.name) == 1
-    second.close()  # one is kept already: this one goes, its rule first
-    assert leftovers(lc.run_id) == [first.network.name] and within_rules(second.network.name) == 0
+    second.close()  # one is kept already: this one goes, its drive, then its rule, then its bridge
+    assert leftovers(lc.run_id) == sorted([first.network.name, first_drive.name])
+    assert within_rules(second.network.name) == 0
     third = lc.boot(standin_platforms[:1])
     assert third.network.name == first.network.name and lc.networks.created == 2
+    assert third.containers["transfer"].id == first_drive.id  # renewed, not made again
     assert attached(third.network) == sorted(c.name for c in third.containers.values())
     third.close()
     stray = docker.from_env().containers.run(  # something still on the kept network: it must not be reused
         "jarvis/transfer", ["sleep", "600"], name=f"{lc.run_id}-stray", network=third.network.name, detach=True,
         labels={LABEL_RUN: lc.run_id})
-    fourth = lc.boot(standin_platforms[:1])
+    fourth = lc.boot(standin_platforms[:1])  # the kept drive is removed, the stray and its network left alone
     assert fourth.network.name not in (first.network.name, second.network.name) and lc.networks.created == 3
+    assert first_drive.name not in leftovers(lc.run_id)
     fourth.close()
-    lc.close()  # removes the network it kept (the fourth's); the stray's is not the lifecycle's any more
+    lc.close()  # removes the network it kept (the fourth's) and its drive; the stray's is not the lifecycle's
     assert leftovers(lc.run_id) == sorted([stray.name, third.network.name])
     assert within_rules(fourth.network.name) == 0
+
+
+def drive_files(container) -> list[str]:
+    """Everything under the drive's root inside its container, with the mode and owner of /data."""
+    out = container.exec_run(["sh", "-c", "cd /srv/drive && find . | sort; stat -c '%a %U' data"]).output
+    return out.decode().splitlines()
+
+
+def drive_generation(container) -> int:
+    """How many servers the drive's PID 1 has started (`drive.sh`)."""
+    return int(container.exec_run(["cat", "/run/jarvis-drive"]).output.split()[0])
+
+
+def test_a_kept_drive_is_renewed_wiped_and_checked_empty(standin_platforms, lifecycle, capfd):
+    import dataclasses
+
+    lc = Lifecycle(lifecycle.run_id, "gw3", keep_networks=1)
+    fresh = lc.boot(standin_platforms[:1])
+    drive = fresh.containers["transfer"]
+    assert drive_files(drive) == [".", "./data", "755 root"] and drive_generation(drive) == 1
+    # what a task may leave: files and folders in /data and at the root, a hidden file, a login session, the
+    # state of an unfinished upload (copyparty's history folder)
+    for path in ("/data/report.xlsx", "/data/sub/deep.txt", "/top.txt", "/.hidden"):
+        fresh.transfer.upload(path, b"left by the last task")
+    fresh.transfer.mkdir("/data/empty-folder")
+    assert drive.exec_run(["sh", "-c", "mkdir -p /root/.config/copyparty && touch /root/.config/copyparty/x.db "
+                           "/var/lib/copyparty/up2k.snap"]).exit_code == 0
+    url = fresh.urls["transfer"]
+    fresh.close()
+    renewed = lc.boot(standin_platforms[:1])
+    assert renewed.containers["transfer"].id == drive.id and renewed.urls["transfer"] == url
+    assert renewed.transfer.walk("/") == [] and renewed.transfer.list("/") == (["data"], [])
+    assert drive_files(drive) == [".", "./data", "755 root"] and drive_generation(drive) == 2
+    assert drive.exec_run(["ls", "/root/.config/copyparty/x.db"]).exit_code != 0
+    assert drive.exec_run(["ls", "/var/lib/copyparty/up2k.snap"]).exit_code != 0
+    # a device of the new task reaches it by its name on the network
+    device = renewed.containers[standin_platforms[0]]
+    probe = device.exec_run(["curl", "-s", "-o", "/dev/null", "-w", "%{http_code}", "-H", "PW: agentPassword",
+                             "http://transfer:5244/data/?ls"])
+    assert probe.output == b"200"
+    renewed.transfer.upload("/data/mine.txt", b"x")
+    renewed.close()
+
+    # the check can fail: a renewal that wipes nothing leaves the file; the boot fails and leaves nothing
+    renew = lc.server.renew
+    lc.server = dataclasses.replace(lc.server, renew=("true",))
+    with pytest.raises(InfrastructureError, match=r"is not empty: .*mine.txt"):
+        lc.boot(standin_platforms[:1])
+    assert leftovers(lc.run_id) == []
+
+    # a drive whose server ended by itself is not started again (it exits as copyparty did) and is replaced
+    lc.server = dataclasses.replace(lc.server, renew=renew)
+    third = lc.boot(standin_platforms[:1])
+    crashed = third.containers["transfer"]
+    crashed.exec_run(["sh", "-c", "read -r g p </run/jarvis-drive; kill -KILL $p"])
+    assert crashed.wait(timeout=10)["StatusCode"] == 137
+    third.close()
+    capfd.readouterr()
+    fourth = lc.boot(standin_platforms[:1])
+    assert fourth.containers["transfer"].id != crashed.id and fourth.transfer.walk("/") == []
+    assert f"kept drive {crashed.name}: its server ended by itself (exit code 137)" in capfd.readouterr().err
+    fourth.close()
+    lc.close()
+    assert leftovers(lc.run_id) == []
+
+
+def test_a_kept_drive_volume_goes_only_to_a_task_whose_device_mounts_it(standin_platforms, lifecycle):
+    """A drive whose storage is a volume (mounted by a device, as Windows mounts S:) is renewed for a task whose
+    device mounts it again, and that device sees the wiped drive; a task whose devices mount nothing takes a kept
+    drive without a volume, or gets a new one."""
+    register_backend(Backend(platform="mounting", image="transfer", port=8000, connect=lambda url: url,
+                             wait_ready=lambda url, t: None, drive_mount="/mnt/drive",
+                             container_options={"command": ["python3", "-m", "http.server", "8000"]}))
+    lc = Lifecycle(lifecycle.run_id, "gw4", keep_networks=2)
+    mounting, plain = lc.boot(("mounting",)), lc.boot(standin_platforms[:1])
+    volume = mounting.volumes[0].name
+    mounting.containers["mounting"].exec_run(["sh", "-c", "echo from-the-device >/mnt/drive/data/left.txt"])
+    assert mounting.transfer.walk("/") == ["/data/left.txt"] and not plain.volumes
+    with_volume, without = mounting.containers["transfer"], plain.containers["transfer"]
+    mounting.close()
+    plain.close()
+    assert {volume, with_volume.name, without.name} <= set(leftovers(lc.run_id))
+    again = lc.boot(standin_platforms[:1])  # not the oldest kept drive: the one without a volume
+    assert again.containers["transfer"].id == without.id and not again.volumes
+    remount = lc.boot(("mounting",))
+    assert remount.containers["transfer"].id == with_volume.id and [v.name for v in remount.volumes] == [volume]
+    seen = remount.containers["mounting"].exec_run(["sh", "-c", "cd /mnt/drive && find . | sort"]).output
+    assert seen.split() == [b".", b"./data"] and remount.transfer.walk("/") == []
+    remount.close()
+    other = lc.boot(standin_platforms[:1])  # only the drive with a volume is kept: it is removed, a new one made
+    assert other.containers["transfer"].id not in (with_volume.id, without.id) and not other.volumes
+    assert volume not in leftovers(lc.run_id) and with_volume.name not in leftovers(lc.run_id)
+    again.close()
+    other.close()
+    lc.close()
+    assert leftovers(lc.run_id) == []
 
 
 def test_the_real_ubuntu_device_on_loopback(ubuntu_env):

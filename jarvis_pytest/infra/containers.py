@@ -150,6 +150,19 @@ def remove_all(containers: list[Any]) -> list[str]:
     return [p for p in results if p]
 
 
+def remove_volumes(volumes: list[Any]) -> list[str]:
+    """Remove named volumes (a task's drive storage); what is already gone is fine. Returns what could not be
+    removed."""
+    problems = []
+    for v in volumes:
+        try:
+            v.remove(force=True)
+        except Exception as exc:
+            if "No such volume" not in str(exc):
+                problems.append(f"volume {v.name}: {exc}")
+    return problems
+
+
 @dataclass
 class BootRequest:
     """What `infra/` hands a backend to boot one device of a task."""

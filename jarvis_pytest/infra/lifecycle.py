@@ -1,9 +1,10 @@
 """The containers and network of one task: a fresh device per platform and a transfer drive on a private network.
 
 `Lifecycle(run_id, worker).boot(("ubuntu",))` takes a Docker network for the task (closed to everything but
-its own members unless egress is allowed: `infra/egress.py`; new, or one a finished task of this worker left
-empty: `infra/networks.py`), starts the transfer drive on it under the alias
-`transfer` (devices reach it at `http://transfer:5244`) and one device per platform through its backend
+its own members unless egress is allowed: `infra/egress.py`; new, or one a finished task of this worker left:
+`infra/networks.py`), starts the transfer drive on it under the alias `transfer` (devices reach it at
+`http://transfer:5244`; a finished task's drive left on the network is renewed instead: a fresh server on a wiped
+drive, checked empty) and one device per platform through its backend
 (`devices/backend.py`), all in parallel, and returns a `TaskEnvironment` once every device and the drive answer.
 Ports are published on 127.0.0.1 only. A backend that mounts the drive's storage (`Backend.drive_mount`, e.g.
 the Windows `S:` drive) shares a volume of the task with the drive. A failed boot removes what it created and
@@ -28,8 +29,8 @@ from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.infra import containers as ctr
 from jarvis_pytest.infra import egress as egress_policy
 from jarvis_pytest.infra import engines
-from jarvis_pytest.infra.networks import TaskNetworks, remove_network
-from jarvis_pytest.infra.transfer import TransferClient
+from jarvis_pytest.infra.networks import KeptDrive, TaskNetworks, remove_network
+from jarvis_pytest.infra.transfer import TransferClient, check_empty
 from jarvis_pytest.infra.transfer_server import (TRANSFER_ALIAS, TRANSFER_PASSWORD, TRANSFER_USER, TransferServer,
                                                  transfer_server)
 
@@ -96,24 +97,19 @@ class TaskEnvironment:
             except Exception as exc:
                 problems.append(f"{booted.backend.label}: {exc}")
         owned = {id(b.container) for b in self._booted}
-        rest = [c for c in self.containers.values() if id(c) not in owned]
+        drive = self.containers.get(TRANSFER_ROLE)
+        rest = [c for c in self.containers.values() if id(c) not in owned and c is not drive]
         problems += ctr.remove_all(rest)
-        problems += self.networks.give_back(self.network) if self.networks else remove_network(self.network)
-        problems += _remove_volumes(self.volumes)
+        if drive is not None and self.networks is not None and self.networks.keep_drives:
+            kept = KeptDrive(drive, self.urls[TRANSFER_ROLE], self.volumes[0] if self.volumes else None)
+            problems += self.networks.give_back(self.network, drive=kept)  # kept with it, or removed
+        else:
+            problems += ctr.remove_all([drive] if drive is not None else [])
+            problems += self.networks.give_back(self.network) if self.networks else remove_network(self.network)
+            problems += ctr.remove_volumes(self.volumes)
         if problems:
             print(f"[jarvis] could not remove {'; '.join(problems)}; run `jarvis cleanup --run {self.run_id}`",
                   file=sys.stderr, flush=True)
-
-
-def _remove_volumes(volumes: list[Any]) -> list[str]:
-    problems = []
-    for v in volumes:
-        try:
-            v.remove(force=True)
-        except Exception as exc:
-            if "No such volume" not in str(exc):
-                problems.append(f"volume {v.name}: {exc}")
-    return problems
 
 
 class Lifecycle:
@@ -121,7 +117,8 @@ class Lifecycle:
 
     `backends` chooses a backend per platform by name (e.g. {"windows": "wine"}); others get their default.
     `egress` opens the task networks (recorded in results); by default they are closed (`infra/egress.py`).
-    `keep_networks` networks of finished tasks are kept for later ones (`infra/networks.py`); `close` removes them.
+    `keep_networks` networks of finished tasks are kept for later ones (`infra/networks.py`), with their drives
+    when the drive's flavour can be renewed; `close` removes them.
     """
 
     def __init__(self, run_id: str, worker: str = "main", limits: Limits | None = None,
@@ -142,7 +139,8 @@ class Lifecycle:
         self._ensure_image(self.server.image, pull=not self.server.built_here)
         if not egress:
             egress_policy.ensure_rules()
-        self.networks = TaskNetworks(self.docker, run_id, worker, egress, keep=keep_networks)
+        self.networks = TaskNetworks(self.docker, run_id, worker, egress, keep=keep_networks,
+                                     keep_drives=self.server.renew is not None)
 
     def close(self) -> None:
         """Remove the networks kept for later tasks (idempotent; environments still out are their holders' to
@@ -181,6 +179,40 @@ class Lifecycle:
     def _drive_volume(self, name: str) -> Any:
         return self.docker.volumes.create(f"{name}-drive", labels=ctr.labels(self.run_id, self.worker, "volume"))
 
+    def _renewed(self, kept: KeptDrive | None, mounted: bool) -> KeptDrive | None:
+        """`kept` (a past task's drive on the network just taken) with a fresh server started on its wiped
+        storage, when this flavour renews and its storage suits the task (a volume exactly when a device mounts
+        it); else None, with `kept` removed (a drive that fails to renew is reported: the task gets a new one)."""
+        if kept is None:
+            return None
+        why = ""
+        if self.server.renew is None:
+            why = "this flavour is not renewed"
+        elif (kept.volume is not None) != mounted:
+            why = "its storage does not suit the task"
+        else:
+            try:
+                result = kept.container.exec_run(list(self.server.renew))
+                if result.exit_code == 0:
+                    return kept
+                why = f"renewal exited {result.exit_code}: {result.output.decode(errors='replace').strip()[:300]}"
+            except Exception as exc:
+                why = f"renewal failed: {exc}"
+                try:
+                    kept.container.reload()
+                    state = kept.container.attrs.get("State") or {}
+                    if not state.get("Running"):
+                        why = f"its server ended by itself (exit code {state.get('ExitCode')})"
+                except Exception:
+                    pass
+            print(f"[jarvis] kept drive {kept.container.name}: {why}; a new drive is started",
+                  file=sys.stderr, flush=True)
+        problems = kept.remove()
+        if problems:
+            print(f"[jarvis] could not remove {'; '.join(problems)}; run `jarvis cleanup --run {self.run_id}`",
+                  file=sys.stderr, flush=True)
+        return None
+
     def boot(self, platforms: tuple[str, ...] | list[str]) -> TaskEnvironment:
         """A network with a transfer drive and one fresh, ready device per platform (booted in parallel)."""
         platforms = tuple(dict.fromkeys(platforms))
@@ -194,7 +226,8 @@ class Lifecycle:
                 raise InfrastructureError(f"the {b.label} device cannot run on this machine: {why}")
         base = self._next_name()
         boot_started = time.time()
-        network = self.networks.take(base)
+        mounted = any(b.drive_mount for b in backends.values())  # a device mounts the drive's storage
+        network, kept = self.networks.take(base, volume=mounted)
         volumes: list[Any] = []
         stop = threading.Event()
         started: list[Any] = []                       # every container made, by any thread
@@ -202,12 +235,25 @@ class Lifecycle:
         clients: dict[str, Any] = {}
         urls: dict[str, str] = {}
         try:
+            kept = self._renewed(kept, mounted)
             drive_volume = None
-            if any(b.drive_mount for b in backends.values()):
+            if kept is not None:
+                started.append(kept.container)
+                if kept.volume is not None:
+                    drive_volume = kept.volume
+                    volumes.append(drive_volume)
+            elif mounted:
                 drive_volume = self._drive_volume(base)
                 volumes.append(drive_volume)
 
             def bring_up_drive() -> None:
+                if kept is not None:  # renewed: a fresh server on a wiped drive, in the container of a past task
+                    url = urls[TRANSFER_ROLE] = kept.url
+                    drive = clients[TRANSFER_ROLE] = self.server.client(url, TRANSFER_USER, TRANSFER_PASSWORD)
+                    ctr.wait_until_ready(kept.container, lambda t: drive.wait_ready(t), TRANSFER_READY_TIMEOUT,
+                                         "the renewed transfer drive")
+                    check_empty(drive)
+                    return
                 options = dict(self.server.container_options)
                 if drive_volume is not None:  # the drive's storage, shared with devices that mount it (S: on Windows)
                     options["volumes"] = {drive_volume.name: {"bind": self.server.storage, "mode": "rw"}}
@@ -264,7 +310,7 @@ class Lifecycle:
             stop.set()
             ctr.remove_all(list(started))  # everything made, also while we were removing
             self.networks.give_back(network, reuse=False)
-            _remove_volumes(volumes)
+            ctr.remove_volumes(volumes)  # a renewed drive's too: its container went with `started`
             for client in clients.values():
                 client.close()
             raise

@@ -1,13 +1,17 @@
 """Task networks: each live task has a private Docker bridge of its own, closed to everything else
-(`infra/egress.py`). A worker may keep the networks of its finished tasks for its next ones.
+(`infra/egress.py`). A worker may keep the networks of its finished tasks for its next ones, each with its
+transfer drive still running on it.
 
 Creating and removing a bridge costs the engine about 40 firewall calls and a bridge interface: here a boot and
-close of an Ubuntu environment took 1.61 s with a new network and 1.39 s with a kept one. So
-`TaskNetworks(keep=N)` keeps up to N networks whose task has ended. It hands one out again only once the engine
-lists no container on it. At any moment, then, a network holds the containers of at most one task, as a new
-network would. What is not kept is removed: the network's firewall rule first, then its bridge. `close` removes
-the kept ones. A worker that is killed leaves them to `jarvis cleanup`: they carry the labels and process id of
-their worker, like the devices.
+close of an Ubuntu environment took 1.61 s with a new network and 1.39 s with a kept one. Around the drive's
+server (whose start costs the same either way), a new drive container costs the engine about 0.36 CPU-s to
+create, start, publish and remove; renewing a kept one in place about 0.06 (one `exec`: the drive's PID 1 starts
+a new server on a wiped drive; `Lifecycle` then checks that it answers and is empty). So `TaskNetworks(keep=N)` keeps up to N networks whose task has
+ended, with their drive (`KeptDrive`) when the lifecycle keeps drives. It hands one out again only once the engine
+lists no container on it but that drive. At any moment, then, a network holds the containers of at most one task,
+as a new network would. What is not kept is removed: the drive and its volume, the network's firewall rule, then
+its bridge. `close` removes the kept ones. A worker that is killed leaves them to `jarvis cleanup`: they carry the
+labels and process id of their worker, like the devices.
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ from __future__ import annotations
 import sys
 import threading
 import time
+from dataclasses import dataclass
 from typing import Any
 
 from jarvis_pytest.errors import InfrastructureError
@@ -70,49 +75,69 @@ def attached(network: Any) -> list[str]:
     return sorted(c.get("Name", cid) for cid, c in (network.attrs.get("Containers") or {}).items())
 
 
+@dataclass
+class KeptDrive:
+    """A finished task's transfer drive, left running on its network for the worker's next task (which renews it
+    before use: `Lifecycle.boot`)."""
+
+    container: Any
+    url: str                 # its published http://127.0.0.1:<port>
+    volume: Any = None       # its storage when a device mounts it (the Windows S: drive), else None
+
+    def remove(self) -> list[str]:
+        """Remove the container, then its volume. Returns what could not be removed."""
+        return ctr.remove_all([self.container]) + ctr.remove_volumes([self.volume] if self.volume else [])
+
+
 class TaskNetworks:
     """The task networks of one worker's `Lifecycle`: `take` one for a task, `give_back` it when the task's
-    containers are gone, `close` at the end. Thread-safe (a pre-warm boots in a thread of its own)."""
+    devices are gone, `close` at the end. Thread-safe (a pre-warm boots in a thread of its own)."""
 
-    def __init__(self, docker: Any, run_id: str, worker: str, egress: bool, keep: int = 0):
+    def __init__(self, docker: Any, run_id: str, worker: str, egress: bool, keep: int = 0, keep_drives: bool = False):
         self.docker, self.run_id, self.worker, self.egress = docker, run_id, worker, egress
         self.keep = keep  # networks kept for later tasks, at most (0: every network is removed with its task)
-        self._free: list[Any] = []
+        self.keep_drives = bool(keep) and keep_drives  # give_back may keep a network's drive with it
+        self._free: list[tuple[Any, KeptDrive | None]] = []
         self._lock = threading.Lock()
         self._closed = False
         self.created = 0  # networks this created, for tests and benchmarks
 
-    def take(self, name: str) -> Any:
-        """A network no container is on: a kept one (the oldest), else a new one named `name`."""
+    def take(self, name: str, volume: bool = False) -> tuple[Any, KeptDrive | None]:
+        """A network no container is on but its kept drive, if any: a kept one with that drive (the oldest whose
+        drive has a volume exactly when `volume`, else the oldest), else a new one named `name` (and no drive)."""
         while True:
             with self._lock:
-                network = self._free.pop(0) if self._free else None
+                fits = [i for i, (_, d) in enumerate(self._free) if d is not None and (d.volume is not None) == volume]
+                network, drive = self._free.pop(fits[0] if fits else 0) if self._free else (None, None)
             if network is None:
                 break
-            on_it = attached(network)
+            on_it = [n for n in attached(network) if drive is None or n != drive.container.name]
             if not on_it:
-                return network
-            print(f"[jarvis] network {network.name} still has {', '.join(on_it)} on it: not reused",
-                  file=sys.stderr, flush=True)
+                return network, drive
+            problems = drive.remove() if drive else []
+            print(f"[jarvis] network {network.name} still has {', '.join(on_it)} on it: not reused"
+                  + (f" (could not remove {'; '.join(problems)})" if problems else ""), file=sys.stderr, flush=True)
         network = create_network(self.docker, name, self.run_id, self.worker, self.egress)
         with self._lock:
             self.created += 1
-        return network
+        return network, None
 
-    def give_back(self, network: Any, reuse: bool = True) -> list[str]:
-        """Keep `network` for a later task when `reuse`, no container is on it and fewer than `keep` are kept;
-        else remove it. Returns what could not be removed."""
-        if reuse and self.keep > 0 and not attached(network):
+    def give_back(self, network: Any, reuse: bool = True, drive: KeptDrive | None = None) -> list[str]:
+        """Keep `network`, with `drive` still on it, for a later task when `reuse`, no other container is on it
+        and fewer than `keep` are kept; else remove the drive and the network. Returns what could not be
+        removed."""
+        if reuse and self.keep > 0 and not [n for n in attached(network)
+                                            if drive is None or n != drive.container.name]:
             with self._lock:
                 if not self._closed and len(self._free) < self.keep:
-                    self._free.append(network)
+                    self._free.append((network, drive))
                     return []
-        return remove_network(network)
+        return (drive.remove() if drive else []) + remove_network(network)
 
     def close(self) -> list[str]:
-        """Remove the kept networks; later `give_back`s remove theirs (idempotent). Returns what could not be
-        removed."""
+        """Remove the kept drives and networks; later `give_back`s remove theirs (idempotent). Returns what could
+        not be removed."""
         with self._lock:
             self._closed = True
             free, self._free = self._free, []
-        return [p for network in free for p in remove_network(network)]
+        return [p for network, drive in free for p in (drive.remove() if drive else []) + remove_network(network)]

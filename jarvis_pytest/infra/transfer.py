@@ -48,6 +48,13 @@ def drive_path(path: str) -> str:
     return posixpath.normpath("/" + path.strip("/"))
 
 
+def check_empty(drive: TransferClient) -> None:
+    """Raise InfrastructureError unless the drive holds only an empty `/data`, as a new drive does."""
+    root, data = drive.list("/"), drive.list("/data")
+    if root != (["data"], []) or data != ([], []):
+        raise InfrastructureError(f"transfer drive at {drive.base_url} is not empty: / holds {root}, /data {data}")
+
+
 class _Drive:
     """What both flavours share: the HTTP client, error messages, `walk` over `list`, polling for readiness."""
 

@@ -44,6 +44,9 @@ class TransferServer:
     built_here: bool = True                                 # built by `jarvis images build` (else pulled)
     port: int = TRANSFER_PORT
     storage: str = COPYPARTY_DRIVE_ROOT   # the drive's root inside its container (`/data` is a folder in it)
+    # run in the drive's container between tasks: returns 0 once a fresh server was started on a wiped drive (None:
+    # the flavour cannot be renewed, and each task gets a new container)
+    renew: tuple[str, ...] | None = None
 
 
 def _provision_alist(base_url: str, admin_password: str) -> None:
@@ -72,7 +75,8 @@ def _alist() -> TransferServer:
 
 
 def _copyparty() -> TransferServer:
-    return TransferServer(flavour="copyparty", image=image_tag("transfer"), client=CopypartyClient)
+    return TransferServer(flavour="copyparty", image=image_tag("transfer"), client=CopypartyClient,
+                          renew=("/opt/jarvis/drive.sh", "renew"))
 
 
 FLAVOURS: dict[str, Callable[[], TransferServer]] = {"copyparty": _copyparty, "alist": _alist}
