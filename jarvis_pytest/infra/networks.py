@@ -51,17 +51,18 @@ def remove_network(network: Any) -> list[str]:
     import docker.errors
 
     egress_policy.close_within(network.name)
+    last: Exception | None = None
     for attempt in range(5):  # a container removal racing ours may keep the network busy for a moment
+        if attempt:
+            time.sleep(0.2)
         try:
             network.remove()
             return []
         except docker.errors.NotFound:
             return []
         except Exception as exc:
-            if attempt == 4:
-                return [f"network {network.name}: {exc}"]
-            time.sleep(0.2)
-    return []
+            last = exc
+    return [f"network {network.name}: {last}"]
 
 
 def attached(network: Any) -> list[str]:
