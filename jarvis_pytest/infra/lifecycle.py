@@ -107,9 +107,14 @@ class TaskEnvironment:
             problems += ctr.remove_all([drive] if drive is not None else [])
             problems += self.networks.give_back(self.network) if self.networks else remove_network(self.network)
             problems += ctr.remove_volumes(self.volumes)
-        if problems:
-            print(f"[jarvis] could not remove {'; '.join(problems)}; run `jarvis cleanup --run {self.run_id}`",
-                  file=sys.stderr, flush=True)
+        report_leftovers(problems, self.run_id)
+
+
+def report_leftovers(problems: list[str], run_id: str) -> None:
+    """Say on stderr what could not be removed, and how to remove it (nothing when `problems` is empty)."""
+    if problems:
+        print(f"[jarvis] could not remove {'; '.join(problems)}; run `jarvis cleanup --run {run_id}`",
+              file=sys.stderr, flush=True)
 
 
 class Lifecycle:
@@ -145,10 +150,7 @@ class Lifecycle:
     def close(self) -> None:
         """Remove the networks kept for later tasks (idempotent; environments still out are their holders' to
         close, and then remove their networks)."""
-        problems = self.networks.close()
-        if problems:
-            print(f"[jarvis] could not remove {'; '.join(problems)}; run `jarvis cleanup --run {self.run_id}`",
-                  file=sys.stderr, flush=True)
+        report_leftovers(self.networks.close(), self.run_id)
 
     def backend(self, platform: str) -> Backend:
         return backend_for(platform, self.choices.get(platform))
@@ -207,10 +209,7 @@ class Lifecycle:
                     pass
             print(f"[jarvis] kept drive {kept.container.name}: {why}; a new drive is started",
                   file=sys.stderr, flush=True)
-        problems = kept.remove()
-        if problems:
-            print(f"[jarvis] could not remove {'; '.join(problems)}; run `jarvis cleanup --run {self.run_id}`",
-                  file=sys.stderr, flush=True)
+        report_leftovers(kept.remove(), self.run_id)
         return None
 
     def boot(self, platforms: tuple[str, ...] | list[str]) -> TaskEnvironment:

@@ -6,12 +6,12 @@ Creating and removing a bridge costs the engine about 40 firewall calls and a br
 close of an Ubuntu environment took 1.61 s with a new network and 1.39 s with a kept one. Around the drive's
 server (whose start costs the same either way), a new drive container costs the engine about 0.36 CPU-s to
 create, start, publish and remove; renewing a kept one in place about 0.06 (one `exec`: the drive's PID 1 starts
-a new server on a wiped drive; `Lifecycle` then checks that it answers and is empty). So `TaskNetworks(keep=N)` keeps up to N networks whose task has
-ended, with their drive (`KeptDrive`) when the lifecycle keeps drives. It hands one out again only once the engine
-lists no container on it but that drive. At any moment, then, a network holds the containers of at most one task,
-as a new network would. What is not kept is removed: the drive and its volume, the network's firewall rule, then
-its bridge. `close` removes the kept ones. A worker that is killed leaves them to `jarvis cleanup`: they carry the
-labels and process id of their worker, like the devices.
+a new server on a wiped drive; `Lifecycle` then checks that it answers and is empty). So `TaskNetworks(keep=N)`
+keeps up to N networks whose task has ended, with their drive (`KeptDrive`) when the lifecycle keeps drives. It
+hands one out again only once the engine lists no container on it but that drive. At any moment, then, a network
+holds the containers of at most one task, as a new network would. What is not kept is removed: the drive and its
+volume, the network's firewall rule, then its bridge. `close` removes the kept ones. A worker that is killed
+leaves them to `jarvis cleanup`: they carry the labels and process id of their worker, like the devices.
 """
 
 from __future__ import annotations
@@ -90,11 +90,22 @@ class KeptDrive:
         return ctr.remove_all([self.container]) + ctr.remove_volumes([self.volume] if self.volume else [])
 
 
+def _others_on(network: Any, drive: KeptDrive | None) -> list[str]:
+    """The containers on `network` other than its kept `drive`."""
+    return [n for n in attached(network) if drive is None or n != drive.container.name]
+
+
+def _remove(network: Any, drive: KeptDrive | None) -> list[str]:
+    """Remove the kept drive (if any), then the network. Returns what could not be removed."""
+    return (drive.remove() if drive else []) + remove_network(network)
+
+
 class TaskNetworks:
     """The task networks of one worker's `Lifecycle`: `take` one for a task, `give_back` it when the task's
     devices are gone, `close` at the end. Thread-safe (a pre-warm boots in a thread of its own)."""
 
-    def __init__(self, docker: Any, run_id: str, worker: str, egress: bool, keep: int = 0, keep_drives: bool = False):
+    def __init__(self, docker: Any, run_id: str, worker: str, egress: bool, keep: int = 0,
+                 keep_drives: bool = False):
         self.docker, self.run_id, self.worker, self.egress = docker, run_id, worker, egress
         self.keep = keep  # networks kept for later tasks, at most (0: every network is removed with its task)
         self.keep_drives = bool(keep) and keep_drives  # give_back may keep a network's drive with it
@@ -108,11 +119,11 @@ class TaskNetworks:
         drive has a volume exactly when `volume`, else the oldest), else a new one named `name` (and no drive)."""
         while True:
             with self._lock:
-                fits = [i for i, (_, d) in enumerate(self._free) if d is not None and (d.volume is not None) == volume]
+                fits = [i for i, (_, d) in enumerate(self._free) if d and (d.volume is not None) == volume]
                 network, drive = self._free.pop(fits[0] if fits else 0) if self._free else (None, None)
             if network is None:
                 break
-            on_it = [n for n in attached(network) if drive is None or n != drive.container.name]
+            on_it = _others_on(network, drive)
             if not on_it:
                 return network, drive
             problems = drive.remove() if drive else []
@@ -127,13 +138,12 @@ class TaskNetworks:
         """Keep `network`, with `drive` still on it, for a later task when `reuse`, no other container is on it
         and fewer than `keep` are kept; else remove the drive and the network. Returns what could not be
         removed."""
-        if reuse and self.keep > 0 and not [n for n in attached(network)
-                                            if drive is None or n != drive.container.name]:
+        if reuse and self.keep > 0 and not _others_on(network, drive):
             with self._lock:
                 if not self._closed and len(self._free) < self.keep:
                     self._free.append((network, drive))
                     return []
-        return (drive.remove() if drive else []) + remove_network(network)
+        return _remove(network, drive)
 
     def close(self) -> list[str]:
         """Remove the kept drives and networks; later `give_back`s remove theirs (idempotent). Returns what could
@@ -141,4 +151,4 @@ class TaskNetworks:
         with self._lock:
             self._closed = True
             free, self._free = self._free, []
-        return [p for network, drive in free for p in (drive.remove() if drive else []) + remove_network(network)]
+        return [p for network, drive in free for p in _remove(network, drive)]
