@@ -89,7 +89,7 @@ def measure(platform: str = "ubuntu", repeat: int = 5, samples: int = 30, idle_s
 
 
 ROWS = [("cold start (create → ready)", "cold_start_ms"), ("reset (pre-warmed, from the pool)", "reset_ms"),
-        ("teardown (close: remove all)", "teardown_ms"),
+        ("teardown (close: devices removed)", "teardown_ms"),
         ("screenshot", "screenshot_ms"), ("one action (MOVE_TO)", "action_ms"),
         ("screenshot + accessibility tree", "observe_a11y_ms")]
 
