@@ -182,17 +182,13 @@ class Lifecycle:
         return self.docker.volumes.create(f"{name}-drive", labels=ctr.labels(self.run_id, self.worker, "volume"))
 
     def _renewed(self, kept: KeptDrive | None, mounted: bool) -> KeptDrive | None:
-        """`kept` (a past task's drive on the network just taken) with a fresh server started on its wiped
-        storage, when this flavour renews and its storage suits the task (a volume exactly when a device mounts
-        it); else None, with `kept` removed (a drive that fails to renew is reported: the task gets a new one)."""
+        """`kept` (a past task's drive on the network just taken; only flavours that renew keep drives) with a
+        fresh server started on its wiped storage, when its storage suits the task (a volume exactly when a device
+        mounts it); else None, with `kept` removed (a drive that fails to renew is reported: the task gets a new
+        one)."""
         if kept is None:
             return None
-        why = ""
-        if self.server.renew is None:
-            why = "this flavour is not renewed"
-        elif (kept.volume is not None) != mounted:
-            why = "its storage does not suit the task"
-        else:
+        if (kept.volume is not None) == mounted:
             try:
                 result = kept.container.exec_run(list(self.server.renew))
                 if result.exit_code == 0:
