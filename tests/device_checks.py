@@ -34,6 +34,11 @@ def check_refusals_keep_the_server_usable(device, url: str) -> None:
     with httpx.Client(base_url=url) as keep_alive:
         assert keep_alive.put("/files", params={"path": "x"}, content=b"GET / HTTP/1.1\r\n\r\n").status_code == 400
         assert keep_alive.get("/health").json()["desktop"]
+        for bad in ("soon", "-1", "60"):  # a readiness request may be held 0-5 s, no more
+            refused = keep_alive.get("/health", params={"wait": bad})
+            assert refused.status_code == 400 and "`wait`" in refused.json()["error"], bad
+        assert keep_alive.get("/health", params={"wait": "5"}).json() == {"ok": True, "desktop": True,
+                                                                          "details": {"ready": True}}
     assert device.health().desktop
     outcome = device.act(A.SystemButton(button="home"))
     assert not outcome.ok and "SYSTEM_BUTTON" in outcome.error

@@ -13,6 +13,8 @@ from typing import Any, Callable
 from urllib.parse import parse_qs, urlsplit
 
 MAX_BODY = 512 * 1024 * 1024
+HEALTH_WAIT_MAX = 5.0   # seconds a `GET /health?wait=S` may hold its answer
+HEALTH_RECHECK = 0.05   # seconds between the server's own readiness checks while it holds one
 
 
 class HttpError(Exception):
@@ -83,6 +85,18 @@ class ControlHandler(BaseHTTPRequestHandler):
     def _query(self) -> dict[str, str]:
         return {k: v[-1] for k, v in parse_qs(urlsplit(self.path).query).items()}
 
+    def _health_wait(self) -> float:
+        """The `wait` query parameter of /health: seconds to hold the answer until the device is ready (0 when
+        absent, at most `HEALTH_WAIT_MAX`)."""
+        raw = self._query().get("wait", "0")
+        try:
+            wait = float(raw)
+        except ValueError:
+            raise HttpError(400, f"query parameter `wait` must be a number of seconds, not {raw!r}") from None
+        if not 0 <= wait <= HEALTH_WAIT_MAX:
+            raise HttpError(400, f"query parameter `wait` must be between 0 and {HEALTH_WAIT_MAX:g} seconds")
+        return wait
+
     def _dispatch(self, method: str) -> None:
         route = urlsplit(self.path).path.rstrip("/") or "/"
         handler = self.routes.get((method, route))
@@ -105,6 +119,19 @@ class ControlHandler(BaseHTTPRequestHandler):
 
     def do_PUT(self) -> None:
         self._dispatch("PUT")
+
+
+def readiness_within(check: Callable[[], dict[str, bool]], seconds: float) -> dict[str, bool]:
+    """`check()` (what is up, by name) again every `HEALTH_RECHECK` seconds until everything is or `seconds`
+    passed; its last answer. Behind `/health?wait=S`: a booting device is asked once a second by the host, not
+    fifty times (each ask crossing the harness, Docker's port proxy and the server cost CPU that the boots of a
+    busy machine need), and the answer still comes within 50 ms of the device being ready."""
+    deadline = time.monotonic() + seconds
+    while True:
+        details = check()
+        if all(details.values()) or time.monotonic() + HEALTH_RECHECK > deadline:
+            return details
+        time.sleep(HEALTH_RECHECK)
 
 
 class ControlServer(ThreadingHTTPServer):

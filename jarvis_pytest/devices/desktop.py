@@ -158,18 +158,24 @@ class DesktopDevice:
         self.close()
 
 
+HEALTH_WAIT = 1.0    # seconds a readiness request lets the server hold its answer until the device is ready
+RETRY_PAUSE = 0.1    # seconds before asking again when no server answered yet, or one that answers at once (the
+                     # control server starts before the desktop it waits for, so this delays no device)
+
+
 def wait_ready(base_url: str, timeout: float) -> None:
-    """Poll /health until the desktop is up; raise InfrastructureError after `timeout` seconds."""
+    """Ask /health until the desktop is up (each ask held by the server up to a second, `?wait=`, so a boot
+    costs about one request a second); raise InfrastructureError after `timeout` seconds."""
     deadline = time.monotonic() + timeout
     last = "no answer"
-    with http_client(base_url=base_url, timeout=2.0) as http:
-        while time.monotonic() < deadline:
+    with http_client(base_url=base_url, timeout=HEALTH_WAIT + 5.0) as http:
+        while (left := deadline - time.monotonic()) > 0:
             try:
-                data = http.get("/health").json()
+                data = http.get("/health", params={"wait": f"{min(HEALTH_WAIT, left):.2f}"}).json()
                 if data.get("desktop"):
                     return
                 last = f"desktop not up yet: {data.get('details')}"
             except (httpx.HTTPError, ValueError) as exc:
                 last = f"{exc.__class__.__name__}"
-            time.sleep(0.02)
+            time.sleep(RETRY_PAUSE)
     raise InfrastructureError(f"device at {base_url} not ready after {timeout:.0f} s ({last})")

@@ -10,7 +10,7 @@ from pydantic import BaseModel, ValidationError
 
 from jarvis_pytest.devices import actions as A
 from jarvis_pytest.devices.control_http import (ControlHandler, ControlServer, HttpError, Lazy, execute,
-                                                wait_for_window)
+                                                readiness_within, wait_for_window)
 from jarvis_pytest.devices.protocol import (A11yTree, ActionResult, ClipboardText, FocusRequest, Health,
                                             LaunchRequest, LaunchResponse, OpenRequest, PathInfo, RunRequest,
                                             ScreenSize, WindowList)
@@ -54,6 +54,21 @@ def _validation_message(exc: ValidationError) -> str:
     return "invalid request: " + "; ".join(parts)
 
 
+def _desktop_readiness() -> dict[str, bool]:
+    """What of the desktop is up (all True once it was seen ready: `DEVICES.ready` latches)."""
+    if DEVICES.ready:
+        return {"ready": True}
+    details = system.running(system.DESKTOP_PROCESSES)
+    try:
+        shown = DEVICES.screen.managed_classes() if all(details.values()) else set()
+        details.update({f"{cls} shown": cls in shown for cls in system.DESKTOP_WINDOWS})
+        details["painted"] = all(details.values()) and DEVICES.screen.painted()
+    except Exception:  # the display is not up yet
+        details["painted"] = False
+    DEVICES.ready = all(details.values())
+    return details
+
+
 class Handler(ControlHandler):
     server_version = "jarvis-control/1"
 
@@ -76,19 +91,10 @@ class Handler(ControlHandler):
     def health(self) -> None:
         """Ready = the display answers, the desktop's processes run, the window manager shows the desktop and the
         panels, and the desktop is drawn. Then it stays so: an agent's own full-screen window must not make a
-        device "unready"."""
-        if DEVICES.ready:
-            self._json(200, Health(ok=True, desktop=True, details={"ready": True}))
-            return
-        details = system.running(system.DESKTOP_PROCESSES)
-        try:
-            shown = DEVICES.screen.managed_classes() if all(details.values()) else set()
-            details.update({f"{cls} shown": cls in shown for cls in system.DESKTOP_WINDOWS})
-            details["painted"] = all(details.values()) and DEVICES.screen.painted()
-        except Exception:  # the display is not up yet
-            details["painted"] = False
-        DEVICES.ready = all(details.values())
-        self._json(200, Health(ok=True, desktop=DEVICES.ready, details=details))
+        device "unready". `?wait=S` holds the answer up to S seconds until the device is ready."""
+        details = readiness_within(_desktop_readiness, self._health_wait())
+        ready = all(details.values())
+        self._json(200, Health(ok=True, desktop=ready, details={"ready": True} if ready else details))
 
     def screen_size(self) -> None:
         w, h = DEVICES.screen.size()

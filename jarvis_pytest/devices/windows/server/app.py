@@ -8,7 +8,7 @@ from __future__ import annotations
 import time
 
 from jarvis_pytest.devices.control_http import (ControlHandler, ControlServer, HttpError, Lazy, execute,
-                                                wait_for_window)
+                                                readiness_within, wait_for_window)
 
 from . import validate
 
@@ -43,6 +43,20 @@ def _app_windows() -> dict[int, str]:
     return app_windows()
 
 
+def _shell_readiness() -> dict[str, bool]:
+    """What of the shell is up (all True once it was seen ready: `DEVICES.ready` latches)."""
+    if DEVICES.ready:
+        return {"ready": True}
+    from .desktop import readiness
+
+    try:
+        details = readiness(DEVICES.screen)
+    except Exception:  # the display is not up yet
+        details = {"taskbar": False, "painted": False}
+    DEVICES.ready = all(details.values())
+    return details
+
+
 class Handler(ControlHandler):
     server_version = "jarvis-control-windows/1"
 
@@ -63,18 +77,11 @@ class Handler(ControlHandler):
     # -- endpoints --------------------------------------------------------------------------------------------
     def health(self) -> None:
         """Ready = the shell's taskbar exists, shows and is drawn (then it stays so: an agent's full-screen window
-        must not make the device "unready")."""
-        if DEVICES.ready:
-            self._json(200, {"ok": True, "desktop": True, "details": {"ready": True}})
-            return
-        from .desktop import readiness
-
-        try:
-            details = readiness(DEVICES.screen)
-        except Exception:  # the display is not up yet
-            details = {"taskbar": False, "painted": False}
-        DEVICES.ready = all(details.values())
-        self._json(200, {"ok": True, "desktop": DEVICES.ready, "details": details})
+        must not make the device "unready"). `?wait=S` holds the answer up to S seconds until the device is
+        ready."""
+        details = readiness_within(_shell_readiness, self._health_wait())
+        ready = all(details.values())
+        self._json(200, {"ok": True, "desktop": ready, "details": {"ready": True} if ready else details})
 
     def screen_size(self) -> None:
         w, h = DEVICES.screen.size()
