@@ -120,7 +120,7 @@ def drive_files(container) -> list[str]:
 
 
 def drive_generation(container) -> int:
-    """How many servers the drive's PID 1 has started (`drive.sh`)."""
+    """How many servers the drive's PID 1 has started (`drive.py`)."""
     return int(container.exec_run(["cat", "/run/jarvis-drive"]).output.split()[0])
 
 

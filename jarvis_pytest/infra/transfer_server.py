@@ -76,7 +76,7 @@ def _alist() -> TransferServer:
 
 def _copyparty() -> TransferServer:
     return TransferServer(flavour="copyparty", image=image_tag("transfer"), client=CopypartyClient,
-                          renew=("/opt/jarvis/drive.sh", "renew"))
+                          renew=("python3", "/opt/jarvis/drive.py", "renew"))
 
 
 FLAVOURS: dict[str, Callable[[], TransferServer]] = {"copyparty": _copyparty, "alist": _alist}
