@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import random
 import re
 import subprocess
 import sys
@@ -20,14 +21,14 @@ import tempfile
 import threading
 import time
 import uuid
+import zlib
 from pathlib import Path
-
-from jarvis_pytest.results.run_state import resource_id
 from typing import Any
 
 from jarvis_pytest.agents.planner import render_step
 from jarvis_pytest.infra.bench import percentile
 from jarvis_pytest.llm.fake_server import FakeChatServer, Reply, RecordedRequest
+from jarvis_pytest.results.run_state import resource_id
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 TASK = "mousepad-write_note"
@@ -87,6 +88,25 @@ def _containers_cpu_seconds() -> float | None:
         return int(CONTAINERS_CPU.read_text()) / 1e9
     except (OSError, ValueError):
         return None
+
+
+def speed_reference() -> dict[str, float]:
+    """How fast this machine is now: the CPU seconds (best of three) of two fixed pieces of work, a pure-Python
+    loop (like the harness and the control servers) and zlib compressing 4 MB (like a PNG screenshot). Printed
+    beside the figures, it tells a slow day of a shared VM from a slower harness: the same code on the same kind
+    of machine has cost about a quarter more CPU per task from one day to the next."""
+    data = random.Random(0).randbytes(1 << 22).translate(bytes(i % 16 for i in range(256)))  # 4 bits a byte
+
+    def best(work) -> float:
+        times = []
+        for _ in range(3):
+            t0 = time.process_time()
+            work()
+            times.append(time.process_time() - t0)
+        return round(min(times), 3)
+
+    return {"python_loop_s": best(lambda: sum(i * i for i in range(2_000_000))),
+            "zlib_4mb_s": best(lambda: zlib.compress(data, 6))}
 
 
 def steady_state(results: list[Any]) -> dict[str, Any]:
@@ -204,7 +224,10 @@ def tasks_for(workers: int, tasks: int | None) -> int:
 
 
 def measure(worker_counts: list[int], latency_ms: int, tasks: int | None, out_root: Path) -> dict[str, Any]:
+    before = speed_reference()
     runs = [run_once(w, latency_ms, tasks_for(w, tasks), out_root) for w in worker_counts]
+    after = speed_reference()
+    speed = {name: [before[name], after[name]] for name in before}
     base = runs[0]["tasks_per_hour"] if runs else 0.0
     steady_base = runs[0]["steady"]["tasks_per_hour"] if runs else None
     for r in runs:
@@ -212,13 +235,17 @@ def measure(worker_counts: list[int], latency_ms: int, tasks: int | None, out_ro
         rate = r["steady"]["tasks_per_hour"]
         r["steady"]["speedup"] = round(rate / steady_base, 2) if rate and steady_base else None
     # `tasks`: as asked (None: the default per worker count; each run says its own in runs[].tasks)
-    return {"task": TASK, "latency_ms": latency_ms, "tasks": tasks, "cores": os.cpu_count(), "runs": runs}
+    # `speed_reference`: each reference's CPU seconds before the first run and after the last
+    return {"task": TASK, "latency_ms": latency_ms, "tasks": tasks, "cores": os.cpu_count(),
+            "speed_reference": speed, "runs": runs}
 
 
 def render(result: dict[str, Any]) -> str:
     count = result["tasks"] or f"{PER_WORKER} per worker (at least {AT_LEAST})"
     lines = [f"{count} × {result['task']} per run, model latency {result['latency_ms']} ms per call, "
              f"{result['cores']} cores; whole run, then steady state (every worker past its first task, none done)",
+             "this machine's speed before / after (CPU s, lower is faster): "
+             + ", ".join(f"{name} {a} / {b}" for name, (a, b) in result["speed_reference"].items()),
              f"{'workers':>7} {'tasks/h':>9} {'speed-up':>9} {'cold-start':>11} {'steady/h':>9} {'speed-up':>9} "
              f"{'cold-start':>11} {'overhead p50':>13} {'p90':>7} {'peak MB':>8} {'CPU s/task':>11} {'devices':>8} "
              f"{'CPU-bound at':>13} {'passed':>7}"]
