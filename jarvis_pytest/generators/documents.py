@@ -71,7 +71,8 @@ def _canonical_namespaces(body: bytes) -> bytes:
 
 def _fixed_zip_times(data: bytes, odf: bool = False) -> bytes:
     """The same package with every member's time fixed (and, for ODF, the volatile meta dates dropped and the
-    namespace declarations made canonical), so equal arguments give equal bytes."""
+    namespace declarations made canonical; for Office Open XML, the created and modified dates set to
+    FIXED_DATE: openpyxl stamps `modified` with the time of saving), so equal arguments give equal bytes."""
     import re
     import zipfile
 
@@ -82,6 +83,9 @@ def _fixed_zip_times(data: bytes, odf: bool = False) -> bytes:
             body = src.read(info.filename)
             if info.filename == "meta.xml":
                 body = re.sub(rb"<meta:(creation-date|generator)>[^<]*</meta:\1>", b"", body)
+            if info.filename == "docProps/core.xml":
+                body = re.sub(rb"(<dcterms:(created|modified)\b[^>]*>)[^<]*(</dcterms:\2>)",
+                              rb"\g<1>" + FIXED_DATE.encode() + rb"Z\g<3>", body)
             if odf and info.filename.endswith(".xml"):
                 body = _canonical_namespaces(body)
             fixed = zipfile.ZipInfo(info.filename, date_time=(2025, 1, 6, 9, 0, 0))

@@ -1,5 +1,5 @@
 """Generators of spreadsheets: a seeded table of people, teams, scores and statuses written as .xlsx
-(openpyxl), .ods (odfpy) or .csv, so every instance of a task gets its own rows."""
+(openpyxl), .ods (odfpy) or .csv, so every instance of a task gets its own rows; deterministic to the byte."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ import csv
 import io
 import random
 
+from jarvis_pytest.generators.documents import _fixed_zip_times
 from jarvis_pytest.generators.registry import generator
 
 HEADER = ["Name", "Team", "Score", "Status"]
@@ -41,7 +42,7 @@ def xlsx_bytes(header: list, rows: list[list], sheet: str = "Sheet1") -> bytes:
     wb.properties.creator = "jarvis"
     buf = io.BytesIO()
     wb.save(buf)
-    return buf.getvalue()
+    return _fixed_zip_times(buf.getvalue())  # openpyxl stamps the members and `modified` with the current time
 
 
 def ods_bytes(header: list, rows: list[list], sheet: str = "Sheet1") -> bytes:
@@ -64,7 +65,7 @@ def ods_bytes(header: list, rows: list[list], sheet: str = "Sheet1") -> bytes:
     doc.spreadsheet.addElement(table)
     buf = io.BytesIO()
     doc.write(buf)
-    return buf.getvalue()
+    return _fixed_zip_times(buf.getvalue(), odf=True)
 
 
 def csv_bytes(header: list, rows: list[list]) -> bytes:
