@@ -5,7 +5,7 @@ from __future__ import annotations
 import datetime
 import io
 
-from jarvis_pytest.generators.documents import _fixed_zip_times
+from jarvis_pytest.generators.packages import deterministic_package
 from jarvis_pytest.generators.registry import generator
 
 
@@ -31,4 +31,4 @@ def pptx_presentation(titles: list[str], bullets: list[str] | None = None) -> by
     prs.core_properties.author = "jarvis"
     buf = io.BytesIO()
     prs.save(buf)
-    return _fixed_zip_times(buf.getvalue())  # python-pptx stamps each member with the current time
+    return deterministic_package(buf.getvalue())  # python-pptx stamps each member with the current time

@@ -7,7 +7,7 @@ import csv
 import io
 import random
 
-from jarvis_pytest.generators.documents import _fixed_zip_times
+from jarvis_pytest.generators.packages import deterministic_package
 from jarvis_pytest.generators.registry import generator
 
 HEADER = ["Name", "Team", "Score", "Status"]
@@ -42,7 +42,7 @@ def xlsx_bytes(header: list, rows: list[list], sheet: str = "Sheet1") -> bytes:
     wb.properties.creator = "jarvis"
     buf = io.BytesIO()
     wb.save(buf)
-    return _fixed_zip_times(buf.getvalue())  # openpyxl stamps the members and `modified` with the current time
+    return deterministic_package(buf.getvalue())  # openpyxl stamps the members and `modified` with the current time
 
 
 def ods_bytes(header: list, rows: list[list], sheet: str = "Sheet1") -> bytes:
@@ -65,7 +65,7 @@ def ods_bytes(header: list, rows: list[list], sheet: str = "Sheet1") -> bytes:
     doc.spreadsheet.addElement(table)
     buf = io.BytesIO()
     doc.write(buf)
-    return _fixed_zip_times(buf.getvalue(), odf=True)
+    return deterministic_package(buf.getvalue(), odf=True)
 
 
 def csv_bytes(header: list, rows: list[list]) -> bytes:
