@@ -33,9 +33,11 @@ def deterministic_package(data: bytes, odf: bool = False) -> bytes:
     """The same package with every member's time fixed (and, for ODF, the volatile meta dates dropped and the
     namespace declarations made canonical; for Office Open XML, the created and modified dates set to
     FIXED_DATE: openpyxl stamps `modified` with the time of saving), so equal arguments give equal bytes."""
+    import datetime
     import re
     import zipfile
 
+    when = datetime.datetime.fromisoformat(FIXED_DATE).timetuple()[:6]
     src = zipfile.ZipFile(io.BytesIO(data))
     out = io.BytesIO()
     with zipfile.ZipFile(out, "w") as dst:
@@ -48,7 +50,7 @@ def deterministic_package(data: bytes, odf: bool = False) -> bytes:
                               rb"\g<1>" + FIXED_DATE.encode() + rb"Z\g<3>", body)
             if odf and info.filename.endswith(".xml"):
                 body = _canonical_namespaces(body)
-            fixed = zipfile.ZipInfo(info.filename, date_time=(2025, 1, 6, 9, 0, 0))
+            fixed = zipfile.ZipInfo(info.filename, date_time=when)
             fixed.compress_type = zipfile.ZIP_STORED if info.filename == "mimetype" else zipfile.ZIP_DEFLATED
             dst.writestr(fixed, body)
     return out.getvalue()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import datetime
 import io
 
-from jarvis_pytest.generators.packages import deterministic_package
+from jarvis_pytest.generators.packages import FIXED_DATE, deterministic_package
 from jarvis_pytest.generators.registry import generator
 
 
@@ -27,7 +27,7 @@ def pptx_presentation(titles: list[str], bullets: list[str] | None = None) -> by
         body.text = lines[0]
         for line in lines[1:]:
             body.add_paragraph().text = line
-    prs.core_properties.created = prs.core_properties.modified = datetime.datetime(2025, 1, 6, 9, 0, 0)
+    prs.core_properties.created = prs.core_properties.modified = datetime.datetime.fromisoformat(FIXED_DATE)
     prs.core_properties.author = "jarvis"
     buf = io.BytesIO()
     prs.save(buf)
