@@ -131,22 +131,25 @@ def test_screenshot_is_the_desktop(device):
 
 
 ENCODE_CHECK = """
-import io, os
+import io, os, random
 from PIL import Image
-from jarvis_pytest.devices.ubuntu.server.screen import encode_png
-for w, h in ((1920, 1080), (1, 1), (7, 3), (333, 211)):
+from jarvis_pytest.devices.png import PngEncoder
+enc = PngEncoder()
+for w, h in ((1920, 1080), (1920, 1080), (1, 1), (7, 3), (333, 211)):
     img = Image.frombytes("RGB", (w, h), os.urandom(w * h * 3))
-    back = Image.open(io.BytesIO(encode_png(img)))
+    back = Image.open(io.BytesIO(enc.encode(img.tobytes(), w, h)))
     assert back.mode == "RGB" and back.size == (w, h) and back.tobytes() == img.tobytes(), (w, h)
-    grey = img.convert("L")  # other modes are converted first
-    assert Image.open(io.BytesIO(encode_png(grey))).tobytes() == grey.convert("RGB").tobytes(), (w, h)
+img = Image.new("RGB", (1920, 1080), "#3a6ea5")
+for _ in range(5):  # a few changed rows: the other bands are reused, every pixel still right
+    img.paste(Image.frombytes("RGB", (50, 3), os.urandom(450)), (random.randrange(1870), random.randrange(1077)))
+    assert Image.open(io.BytesIO(enc.encode(img.tobytes(), 1920, 1080))).tobytes() == img.tobytes()
 print("same")
 """
 
 
 def test_the_screenshot_encoder_keeps_every_pixel(device):
-    """The control server's own PNG writer, run where it runs: random images of several sizes decode (with
-    Pillow) to exactly their pixels."""
+    """The control server's PNG writer (`devices/png.py`), run where it runs: random images of several sizes,
+    then one screen with a few rows changed at a time, decode (with Pillow) to exactly their pixels."""
     out = device.run(f"python3 -c '{ENCODE_CHECK}'")
     assert out.returncode == 0 and out.stdout.strip() == "same", out
 

@@ -78,7 +78,8 @@ def test_oem_bundle_carries_the_official_python_with_its_licence_and_the_server(
     server = zipfile.ZipFile(io.BytesIO((folder / "server.zip").read_bytes()))
     names = server.namelist()
     assert {"jarvis_pytest/devices/windows/server/__main__.py", "jarvis_pytest/devices/control_http.py",
-            "jarvis_pytest/devices/pyautogui_compat.py", "jarvis_pytest/devices/windows/__init__.py"} <= set(names)
+            "jarvis_pytest/devices/pyautogui_compat.py", "jarvis_pytest/devices/windows/__init__.py",
+            "jarvis_pytest/devices/png.py", "jarvis_pytest/devices/windows/server/screen.py"} <= set(names)
     # the package imports nothing beyond the standard library on the device: no pydantic, no httpx
     for name in names:
         text = server.read(name).decode()

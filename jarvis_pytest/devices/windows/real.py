@@ -18,7 +18,6 @@ from jarvis_pytest.errors import InfrastructureError
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
 OEM_DIR = REPO_ROOT / "fixtures" / "images" / "windows-real" / "oem"
-SERVER_DIR = Path(__file__).resolve().parent / "server"
 IMAGE = os.environ.get("JARVIS_WINDOWS_IMAGE", "dockurr/windows")
 VERSION = os.environ.get("JARVIS_WINDOWS_VERSION", "11")  # dockur's VERSION: 11, 10, ltsc10, ...
 DISKS = Path(os.environ.get("JARVIS_WINDOWS_DISKS", Path.home() / ".cache" / "jarvis" / "windows-real"))
@@ -75,14 +74,16 @@ def oem_bundle(target: Path) -> Path:
     target.mkdir(parents=True, exist_ok=True)
     for name in ("install.bat", "start.bat"):
         shutil.copy2(OEM_DIR / name, target / name)
+    from jarvis_pytest.infra.images import discover
+
     buf = io.BytesIO()
-    package = REPO_ROOT / "jarvis_pytest"
-    files = [package / "__init__.py", package / "devices" / "__init__.py", package / "devices" / "control_http.py",
-             package / "devices" / "pyautogui_compat.py", package / "devices" / "windows" / "__init__.py",
-             *sorted(SERVER_DIR.rglob("*.py"))]
+    # the server and the standard-library modules it shares with the other platforms' servers: the code the Wine
+    # image copies to C:\jarvis (its image.json `extras`), so both Windows backends run the same files
+    wine = discover()["windows"]
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
-        for p in files:  # the server and the standard-library modules it shares with the other platforms' servers
-            z.write(p, p.relative_to(REPO_ROOT).as_posix())
+        for rel, path in wine.context_files():
+            if rel.startswith("jarvis/") and path.suffix == ".py":
+                z.write(path, rel.removeprefix("jarvis/"))
     (target / "server.zip").write_bytes(buf.getvalue())
     (target / "python-embed.zip").write_bytes(_embeddable_python())
     return target

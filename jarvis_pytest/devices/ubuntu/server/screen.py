@@ -1,16 +1,15 @@
 """Screen capture: the root window (MIT-SHM, else Pillow's XCB grab), the real cursor drawn on it, PNG out.
 
 The cursor is the X server's current cursor image (XFixes), so an agent sees an I-beam over text and a hand over
-links, drawn at the pointer. The PNG is written here rather than by Pillow: rows with filter type 0 and zlib
-level 1 encode a 1920×1080 desktop in about 13 ms against 26 ms for Pillow at level 1, at a similar size (screens are
-mostly flat).
+links, drawn at the pointer. The PNG is written by the devices' shared encoder (`devices/png.py`), not by Pillow:
+it re-compresses only the bands of rows that changed since the last screenshot (a whole 1920×1080 desktop took
+23 ms of the server's CPU, Pillow at level 1 about twice that).
 """
 
 from __future__ import annotations
 
 import struct
 import threading
-import zlib
 from typing import Any, Callable
 
 from PIL import Image, ImageGrab, ImageStat
@@ -18,31 +17,11 @@ from Xlib import X, display
 from Xlib.error import XError
 from Xlib.ext import xfixes  # noqa: F401  (registers the XFixes requests on Display)
 
+from jarvis_pytest.devices.png import PngEncoder
+
 # Keep freed image memory for the next screenshot: each one needs three 6-8 MB images, and fresh memory costs
 # about 14 ms of page faults per screenshot.
 Image.core.set_blocks_max(4)
-
-
-def encode_png(img: Image.Image, level: int = 1) -> bytes:
-    """An RGB image as PNG (8-bit truecolour, no filtering). The rows are fed to zlib as they lie in the image's
-    bytes, each after its filter byte 0, with no copy of the image made: 13 ms for a 1920×1080 desktop, where
-    building the filtered rows as a second image first took 26 ms."""
-    img = img if img.mode == "RGB" else img.convert("RGB")
-    w, h = img.size
-    pixels, stride = memoryview(img.tobytes()), w * 3
-    deflate = zlib.compressobj(level)
-    parts = []
-    for start in range(0, h * stride, stride):
-        parts.append(deflate.compress(b"\x00"))
-        parts.append(deflate.compress(pixels[start:start + stride]))
-    parts.append(deflate.flush())
-
-    def chunk(kind: bytes, data: bytes) -> bytes:
-        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
-
-    header = struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0)
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", b"".join(parts))
-            + chunk(b"IEND", b""))
 
 
 def cursor_image(reply) -> Image.Image:
@@ -61,6 +40,7 @@ class Screen:
         self.display.xfixes_query_version()  # XFixes answers nothing before the version is negotiated
         self.lock = threading.Lock()
         self._cursor: tuple[int, Image.Image] | None = None  # (serial, image)
+        self._encoder = PngEncoder()
         try:
             from jarvis_pytest.devices.ubuntu.server.xshm import ShmGrabber
 
@@ -169,4 +149,6 @@ class Screen:
         return ImageStat.Stat(small).stddev[0] >= min_stddev
 
     def png(self) -> bytes:
-        return encode_png(self.grab())
+        img = self.grab()
+        img = img if img.mode == "RGB" else img.convert("RGB")
+        return self._encoder.encode(img.tobytes(), *img.size)

@@ -7,9 +7,10 @@ another process, so the standard arrow stands in for it there (real Windows draw
 from __future__ import annotations
 
 import ctypes
+import struct
 import threading
 
-from . import png
+from jarvis_pytest.devices.png import PngEncoder
 from . import win32 as w
 
 
@@ -26,7 +27,7 @@ class Screen:
         self.lock = threading.Lock()
         self._dib = None  # (width, height, memory DC, bitmap, bits pointer, stride)
         self._hotspots: dict[int, tuple[int, int]] = {}
-        self._encoder = png.PngEncoder()
+        self._encoder = PngEncoder(bgr=True)
 
     def size(self) -> tuple[int, int]:
         _, _, cx, cy = virtual_screen()
@@ -111,7 +112,7 @@ class Screen:
 
     def bmp(self) -> bytes:
         with self.lock:
-            return png.bgr_to_bmp(*self._grab(True))
+            return bgr_to_bmp(*self._grab(True))
 
     def painted(self, box: list[int]) -> bool:
         """Whether the screen area `box` [x, y, w, h] shows more than one colour (something is drawn there)."""
@@ -127,3 +128,11 @@ class Screen:
             if line != first * bw:
                 return True
         return False
+
+
+def bgr_to_bmp(bgr, width: int, height: int, stride: int | None = None) -> bytes:
+    """A top-down 24-bit BMP of GDI's rows as they are (no pixel touched; 6 MB at 1920x1080)."""
+    stride = stride or (width * 3 + 3) // 4 * 4
+    size = stride * height
+    info = struct.pack("<IiiHHIIiiII", 40, width, -height, 1, 24, 0, size, 3780, 3780, 0, 0)
+    return b"".join((b"BM", struct.pack("<IHHI", 14 + 40 + size, 0, 0, 14 + 40), info, memoryview(bgr)[:size]))

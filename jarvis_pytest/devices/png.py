@@ -1,12 +1,12 @@
-"""PNG and BMP encoding of a screen capture (24-bit BGR rows, top-down, as GDI gives them), with the standard
-library alone.
+"""PNG encoding of screen captures with the standard library alone: it runs in the control servers of the Ubuntu
+device (RGB rows from X) and of the Windows device (BGR rows from GDI, on the embeddable CPython).
 
-PNG: the image is cut into bands of rows, each compressed on its own (raw deflate, level 1, filter type 0, ended
-on a byte boundary) so the bands concatenate into one zlib stream; the stream's Adler-32 is combined from the
-bands'. `PngEncoder` keeps the last frame: a band whose pixels did not change reuses its compressed bytes, so an
-agent's next screenshot after a click costs the few bands that changed; changed bands are compressed on two
-threads (zlib releases the GIL). B and R are swapped with extended-slice assignments (C loops), never per pixel in
-Python. BMP is the capture as it is behind a 54-byte header: no encoding, but 6 MB at 1920x1080.
+The image is cut into bands of rows, each compressed on its own (raw deflate, level 1, filter type 0, ended on a
+byte boundary) so the bands concatenate into one zlib stream; the stream's Adler-32 is combined from the bands'.
+`PngEncoder` keeps the last frame: a band whose pixels did not change reuses its compressed bytes, so an agent's
+next screenshot after a click or a few typed letters costs the few bands that changed (a whole 1920x1080 frame
+costs about 15 ms of zlib). Changed bands are compressed on two threads (zlib releases the GIL). B and R of BGR
+rows are swapped with extended-slice assignments (C loops), never per pixel in Python.
 """
 
 from __future__ import annotations
@@ -40,16 +40,18 @@ def adler32_combine(adler1: int, adler2: int, len2: int) -> int:
     return sum1 | (sum2 << 16)
 
 
-def _band(bgr: bytes, width: int, rows: int, stride: int, level: int) -> tuple[bytes, int, int]:
+def _band(pixels: bytes, width: int, rows: int, stride: int, level: int, bgr: bool) -> tuple[bytes, int, int]:
     """(raw deflate ending on a byte boundary, Adler-32, length) of `rows` rows: filter byte 0, then RGB."""
     row = width * 3
     if stride != row:
-        bgr = b"".join(bgr[i * stride:i * stride + row] for i in range(rows))
-    rgb = bytearray(bgr)
-    blue = rgb[0::3]
-    rgb[0::3] = rgb[2::3]
-    rgb[2::3] = blue
-    raw = b"\0" + b"\0".join(rgb[i * row:(i + 1) * row] for i in range(rows))
+        pixels = b"".join(pixels[i * stride:i * stride + row] for i in range(rows))
+    if bgr:
+        rgb = bytearray(pixels)
+        blue = rgb[0::3]
+        rgb[0::3] = rgb[2::3]
+        rgb[2::3] = blue
+        pixels = rgb
+    raw = b"\0" + b"\0".join(pixels[i * row:(i + 1) * row] for i in range(rows))
     z = zlib.compressobj(level, zlib.DEFLATED, -15)
     return z.compress(raw) + z.flush(zlib.Z_SYNC_FLUSH), zlib.adler32(raw), len(raw)
 
@@ -65,10 +67,11 @@ def _png(width: int, height: int, bands: list[tuple[bytes, int, int]]) -> bytes:
 
 class PngEncoder:
     """PNG encoding of successive frames of one screen, reusing the compressed bands that did not change
-    (thread-safe)."""
+    (thread-safe). `bgr`: the rows are B, G, R (GDI); else R, G, B (X, Pillow)."""
 
-    def __init__(self, level: int = 1, threads: int = 2):
+    def __init__(self, level: int = 1, threads: int = 2, bgr: bool = False):
         self.level = level
+        self.bgr = bgr
         self.lock = threading.Lock()
         self.pool = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="png")
         self._key: tuple[int, int, int] | None = None
@@ -76,10 +79,13 @@ class PngEncoder:
         self._bands: list[tuple[bytes, int, int]] = []
         self._png = b""
 
-    def encode(self, bgr, width: int, height: int, stride: int | None = None) -> bytes:
-        """PNG of top-down BGR rows of `stride` bytes; `bgr` is any buffer (the DIB section's memory itself)."""
+    def encode(self, pixels, width: int, height: int, stride: int | None = None) -> bytes:
+        """PNG of top-down rows of `stride` bytes (3 a pixel, then padding); `pixels` is any buffer (e.g. the
+        DIB section's memory itself) and is not kept."""
         stride = stride or width * 3
-        frame = bytes(memoryview(bgr)[:stride * height])  # the one copy of the pixels, kept for the next frame
+        size = stride * height
+        # the one copy of the pixels, kept for the next frame (none when they already are exactly that)
+        frame = pixels if type(pixels) is bytes and len(pixels) == size else bytes(memoryview(pixels)[:size])
         with self.lock:
             same_size = self._key == (width, height, stride)
             if same_size and frame == self._frame:
@@ -91,7 +97,7 @@ class PngEncoder:
                 lo, hi = top * stride, min(height, top + BAND_ROWS) * stride
                 if not (same_size and frame[lo:hi] == self._frame[lo:hi]):
                     rows = min(BAND_ROWS, height - top)
-                    jobs[i] = self.pool.submit(_band, frame[lo:lo + step], width, rows, stride, self.level)
+                    jobs[i] = self.pool.submit(_band, frame[lo:lo + step], width, rows, stride, self.level, self.bgr)
             bands = self._bands if same_size else [None] * len(starts)
             for i, job in jobs.items():
                 bands[i] = job.result()
@@ -100,23 +106,11 @@ class PngEncoder:
             return self._png
 
 
-def bgr_to_png(bgr, width: int, height: int, stride: int | None = None, level: int = 1) -> bytes:
-    """PNG (8-bit truecolour) of top-down BGR rows of `stride` bytes (GDI pads rows to 4 bytes)."""
+def encode_png(pixels, width: int, height: int, stride: int | None = None, *, bgr: bool = False,
+               level: int = 1) -> bytes:
+    """PNG (8-bit truecolour) of one frame of top-down rows of `stride` bytes, nothing kept."""
     stride = stride or width * 3
-    data = bytes(memoryview(bgr)[:stride * height])
-    bands = [_band(data[top * stride:(top + BAND_ROWS) * stride], width, min(BAND_ROWS, height - top), stride, level)
-             for top in range(0, height, BAND_ROWS)]
+    data = bytes(memoryview(pixels)[:stride * height])
+    bands = [_band(data[top * stride:(top + BAND_ROWS) * stride], width, min(BAND_ROWS, height - top), stride,
+                   level, bgr) for top in range(0, height, BAND_ROWS)]
     return _png(width, height, bands)
-
-
-def bgr_to_bmp(bgr, width: int, height: int, stride: int | None = None) -> bytes:
-    """A top-down 24-bit BMP of the same rows (no pixel touched)."""
-    stride = stride or (width * 3 + 3) // 4 * 4
-    size = stride * height
-    info = struct.pack("<IiiHHIIiiII", 40, width, -height, 1, 24, 0, size, 3780, 3780, 0, 0)
-    return b"".join((b"BM", struct.pack("<IHHI", 14 + 40 + size, 0, 0, 14 + 40), info, memoryview(bgr)[:size]))
-
-
-def png_size(png: bytes) -> tuple[int, int]:
-    """Width and height from a PNG header."""
-    return int.from_bytes(png[16:20], "big"), int.from_bytes(png[20:24], "big")
