@@ -8,6 +8,7 @@ import io
 import random
 import zlib
 
+import pytest
 from PIL import Image
 
 from jarvis_pytest.devices.png import BAND_ROWS, PngEncoder, adler32_combine, encode_png
@@ -40,22 +41,26 @@ def test_adler32_combine_is_zlibs():
         assert adler32_combine(zlib.adler32(a), zlib.adler32(b), len(b)) == zlib.adler32(a + b)
 
 
-def test_one_frame_keeps_every_pixel_in_both_channel_orders():
+def test_one_frame_keeps_every_pixel_in_every_layout():
     rnd = random.Random(2)
     for w, h in ((1, 1), (7, 3), (333, 211), (64, BAND_ROWS), (64, BAND_ROWS + 1)):
-        rgb = rnd.randbytes(w * h * 3)
-        assert decoded(encode_png(rgb, w, h), w, h) == rgb
-        bgr = bytearray(rgb)
-        bgr[0::3], bgr[2::3] = rgb[2::3], rgb[0::3]
-        assert decoded(encode_png(bytes(bgr), w, h, bgr=True), w, h) == rgb
+        img = Image.frombytes("RGB", (w, h), rnd.randbytes(w * h * 3))
+        rgb = img.tobytes()
+        for layout in ("RGB", "BGR", "BGRX"):
+            assert decoded(encode_png(img.tobytes("raw", layout), w, h, layout=layout), w, h) == rgb, layout
+    with pytest.raises(ValueError, match="pixel layout 'RGBA'"):
+        PngEncoder(layout="RGBA")
 
 
 def test_padded_rows_lose_their_padding():
-    """GDI pads each row to 4 bytes: a stride wider than the pixels."""
-    w, h, stride = 5, 9, 16
-    rows = [random.Random(i).randbytes(w * 3) for i in range(h)]
-    padded = b"".join(r + b"\xee" * (stride - w * 3) for r in rows)
-    assert decoded(encode_png(padded, w, h, stride), w, h) == b"".join(rows)
+    """GDI pads each row to 4 bytes, X may pad too: a stride wider than the pixels."""
+    w, h = 5, 9
+    img = Image.frombytes("RGB", (w, h), random.Random(4).randbytes(w * h * 3))
+    for layout, stride in (("RGB", 16), ("BGR", 16), ("BGRX", 24)):
+        data = img.tobytes("raw", layout)
+        used = len(data) // h
+        padded = b"".join(data[r * used:(r + 1) * used] + b"\xee" * (stride - used) for r in range(h))
+        assert decoded(encode_png(padded, w, h, stride, layout=layout), w, h) == img.tobytes(), layout
 
 
 def test_successive_frames_reuse_unchanged_bands_and_stay_exact():
@@ -68,6 +73,7 @@ def test_successive_frames_reuse_unchanged_bands_and_stay_exact():
     first = enc.encode(bytes(frame), w, h)
     assert decoded(first, w, h) == frame
     assert enc.encode(bytes(frame), w, h) == first
+    assert enc.encode(bytearray(frame), w, h) == first  # a bytearray of the frame is kept as it is
     for _ in range(30):
         y, x, n = rnd.randrange(h), rnd.randrange(w - 20), rnd.randrange(1, 4)
         for row in range(y, min(h, y + n)):

@@ -143,13 +143,31 @@ img = Image.new("RGB", (1920, 1080), "#3a6ea5")
 for _ in range(5):  # a few changed rows: the other bands are reused, every pixel still right
     img.paste(Image.frombytes("RGB", (50, 3), os.urandom(450)), (random.randrange(1870), random.randrange(1077)))
     assert Image.open(io.BytesIO(enc.encode(img.tobytes(), 1920, 1080))).tobytes() == img.tobytes()
+from jarvis_pytest.devices.ubuntu.server.screen import draw_on_bgrx
+cursor = Image.frombytes("RGBA", (24, 24), os.urandom(24 * 24 * 4))
+screen = Image.frombytes("RGB", (300, 200), os.urandom(300 * 200 * 3))
+for x, y in ((10, 10), (-5, -7), (290, 190), (-30, 5), (0, 199), (300, 0)):  # inside, clipped, off the screen
+    want = screen.copy()
+    want.paste(cursor, (x, y), cursor)
+    bgrx = bytearray(screen.tobytes("raw", "BGRX"))
+    draw_on_bgrx(bgrx, 300, 200, 1200, cursor, x, y)
+    assert Image.frombytes("RGB", (300, 200), bytes(bgrx), "raw", "BGRX").tobytes() == want.tobytes(), (x, y)
+from jarvis_pytest.devices.ubuntu.server.screen import Screen
+live = Screen(":0")
+assert live._shm is not None
+for x in (0, 900, 1915):  # the screenshots are what Pillow grabs, cursor and all (again if a clock ticked)
+    live.root.warp_pointer(x, 500)
+    live.display.sync()
+    assert any(Image.open(io.BytesIO(live.png())).tobytes() == live.grab().tobytes() for _ in range(3)), x
 print("same")
 """
 
 
 def test_the_screenshot_encoder_keeps_every_pixel(device):
     """The control server's PNG writer (`devices/png.py`), run where it runs: random images of several sizes,
-    then one screen with a few rows changed at a time, decode (with Pillow) to exactly their pixels."""
+    then one screen with a few rows changed at a time, decode (with Pillow) to exactly their pixels; the cursor
+    drawn into the X server's pixels is what Pillow draws, clipped at the screen's edges, and a live screenshot is
+    the screen Pillow grabs."""
     out = device.run(f"python3 -c '{ENCODE_CHECK}'")
     assert out.returncode == 0 and out.stdout.strip() == "same", out
 

@@ -1,12 +1,13 @@
 """PNG encoding of screen captures with the standard library alone: it runs in the control servers of the Ubuntu
-device (RGB rows from X) and of the Windows device (BGR rows from GDI, on the embeddable CPython).
+device (BGRX pixels from X's shared memory) and of the Windows device (BGR rows from GDI, on the embeddable CPython).
 
 The image is cut into bands of rows, each compressed on its own (raw deflate, level 1, filter type 0, ended on a
 byte boundary) so the bands concatenate into one zlib stream; the stream's Adler-32 is combined from the bands'.
 `PngEncoder` keeps the last frame: a band whose pixels did not change reuses its compressed bytes, so an agent's
 next screenshot after a click or a few typed letters costs the few bands that changed (a whole 1920x1080 frame
-costs about 15 ms of zlib). Changed bands are compressed on two threads (zlib releases the GIL). B and R of BGR
-rows are swapped with extended-slice assignments (C loops), never per pixel in Python.
+costs about 15 ms of zlib). Changed bands are compressed on two threads (zlib releases the GIL). Pixels other
+than RGB are reordered with extended-slice assignments (C loops), never per pixel in Python, and only in the bands
+that changed.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 BAND_ROWS = 32
 ADLER_BASE = 65521
 FINAL_BLOCK = b"\x03\x00"  # an empty final deflate block (fixed Huffman, end of block)
+PIXEL_BYTES = {"RGB": 3, "BGR": 3, "BGRX": 4}  # the pixel layouts a frame may come in
 
 
 def _chunk(kind: bytes, data: bytes) -> bytes:
@@ -40,18 +42,23 @@ def adler32_combine(adler1: int, adler2: int, len2: int) -> int:
     return sum1 | (sum2 << 16)
 
 
-def _band(pixels: bytes, width: int, rows: int, stride: int, level: int, bgr: bool) -> tuple[bytes, int, int]:
+def _rgb(pixels, layout: str):
+    """Packed RGB of pixels in `layout` (see PIXEL_BYTES)."""
+    if layout == "RGB":
+        return pixels
+    step = PIXEL_BYTES[layout]
+    rgb = bytearray(len(pixels) // step * 3)
+    rgb[0::3], rgb[1::3], rgb[2::3] = pixels[2::step], pixels[1::step], pixels[0::step]
+    return rgb
+
+
+def _band(pixels: bytes, width: int, rows: int, stride: int, level: int, layout: str) -> tuple[bytes, int, int]:
     """(raw deflate ending on a byte boundary, Adler-32, length) of `rows` rows: filter byte 0, then RGB."""
-    row = width * 3
-    if stride != row:
-        pixels = b"".join(pixels[i * stride:i * stride + row] for i in range(rows))
-    if bgr:
-        rgb = bytearray(pixels)
-        blue = rgb[0::3]
-        rgb[0::3] = rgb[2::3]
-        rgb[2::3] = blue
-        pixels = rgb
-    raw = b"\0" + b"\0".join(pixels[i * row:(i + 1) * row] for i in range(rows))
+    used = width * PIXEL_BYTES[layout]
+    if stride != used:
+        pixels = b"".join(pixels[i * stride:i * stride + used] for i in range(rows))
+    rgb, row = _rgb(pixels, layout), width * 3
+    raw = b"\0" + b"\0".join(rgb[i * row:(i + 1) * row] for i in range(rows))
     z = zlib.compressobj(level, zlib.DEFLATED, -15)
     return z.compress(raw) + z.flush(zlib.Z_SYNC_FLUSH), zlib.adler32(raw), len(raw)
 
@@ -67,11 +74,13 @@ def _png(width: int, height: int, bands: list[tuple[bytes, int, int]]) -> bytes:
 
 class PngEncoder:
     """PNG encoding of successive frames of one screen, reusing the compressed bands that did not change
-    (thread-safe). `bgr`: the rows are B, G, R (GDI); else R, G, B (X, Pillow)."""
+    (thread-safe). `layout`: how a pixel lies in memory, "RGB", "BGR" (GDI) or "BGRX" (X, 32 bits a pixel)."""
 
-    def __init__(self, level: int = 1, threads: int = 2, bgr: bool = False):
+    def __init__(self, level: int = 1, threads: int = 2, layout: str = "RGB"):
+        if layout not in PIXEL_BYTES:
+            raise ValueError(f"pixel layout {layout!r}: one of {', '.join(PIXEL_BYTES)}")
         self.level = level
-        self.bgr = bgr
+        self.layout = layout
         self.lock = threading.Lock()
         self.pool = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="png")
         self._key: tuple[int, int, int] | None = None
@@ -80,12 +89,13 @@ class PngEncoder:
         self._png = b""
 
     def encode(self, pixels, width: int, height: int, stride: int | None = None) -> bytes:
-        """PNG of top-down rows of `stride` bytes (3 a pixel, then padding); `pixels` is any buffer (e.g. the
-        DIB section's memory itself) and is not kept."""
-        stride = stride or width * 3
+        """PNG of top-down rows of `stride` bytes (the pixels, then any padding). `pixels` is any buffer (e.g. the
+        DIB section's memory itself), copied unless it is `bytes` or a `bytearray` of exactly the frame: those
+        are kept, to compare the next frame with, and must not change afterwards."""
+        stride = stride or width * PIXEL_BYTES[self.layout]
         size = stride * height
-        # the one copy of the pixels, kept for the next frame (none when they already are exactly that)
-        frame = pixels if type(pixels) is bytes and len(pixels) == size else bytes(memoryview(pixels)[:size])
+        owned = type(pixels) in (bytes, bytearray) and len(pixels) == size
+        frame = pixels if owned else bytes(memoryview(pixels)[:size])  # the one copy, kept for the next frame
         with self.lock:
             same_size = self._key == (width, height, stride)
             if same_size and frame == self._frame:
@@ -97,7 +107,8 @@ class PngEncoder:
                 lo, hi = top * stride, min(height, top + BAND_ROWS) * stride
                 if not (same_size and frame[lo:hi] == self._frame[lo:hi]):
                     rows = min(BAND_ROWS, height - top)
-                    jobs[i] = self.pool.submit(_band, frame[lo:lo + step], width, rows, stride, self.level, self.bgr)
+                    jobs[i] = self.pool.submit(_band, frame[lo:lo + step], width, rows, stride, self.level,
+                                               self.layout)
             bands = self._bands if same_size else [None] * len(starts)
             for i, job in jobs.items():
                 bands[i] = job.result()
@@ -106,11 +117,11 @@ class PngEncoder:
             return self._png
 
 
-def encode_png(pixels, width: int, height: int, stride: int | None = None, *, bgr: bool = False,
+def encode_png(pixels, width: int, height: int, stride: int | None = None, *, layout: str = "RGB",
                level: int = 1) -> bytes:
     """PNG (8-bit truecolour) of one frame of top-down rows of `stride` bytes, nothing kept."""
-    stride = stride or width * 3
+    stride = stride or width * PIXEL_BYTES[layout]
     data = bytes(memoryview(pixels)[:stride * height])
     bands = [_band(data[top * stride:(top + BAND_ROWS) * stride], width, min(BAND_ROWS, height - top), stride,
-                   level, bgr) for top in range(0, height, BAND_ROWS)]
+                   level, layout) for top in range(0, height, BAND_ROWS)]
     return _png(width, height, bands)

@@ -30,6 +30,23 @@ def cursor_image(reply) -> Image.Image:
     return Image.frombytes("RGBA", (reply.width, reply.height), argb, "raw", "BGRa")
 
 
+def draw_on_bgrx(pixels: bytearray, width: int, height: int, stride: int, image: Image.Image, x: int, y: int) -> None:
+    """Draw the RGBA `image` with its top-left corner at (x, y), clipped to the screen, into BGRX `pixels` (rows of
+    `stride` bytes); only the rows and columns under the image are touched."""
+    left, top = max(x, 0), max(y, 0)
+    right, bottom = min(x + image.width, width), min(y + image.height, height)
+    if left >= right or top >= bottom:
+        return
+    row = (right - left) * 4
+    spans = [slice(r * stride + left * 4, r * stride + left * 4 + row) for r in range(top, bottom)]
+    under = Image.frombytes("RGB", (right - left, bottom - top), b"".join(pixels[s] for s in spans), "raw", "BGRX")
+    part = image.crop((left - x, top - y, right - x, bottom - y))
+    under.paste(part, (0, 0), part)
+    drawn = under.tobytes("raw", "BGRX")
+    for i, s in enumerate(spans):
+        pixels[s] = drawn[i * row:(i + 1) * row]
+
+
 class Screen:
     """Screenshots of the X display (thread-safe)."""
 
@@ -40,13 +57,13 @@ class Screen:
         self.display.xfixes_query_version()  # XFixes answers nothing before the version is negotiated
         self.lock = threading.Lock()
         self._cursor: tuple[int, Image.Image] | None = None  # (serial, image)
-        self._encoder = PngEncoder()
         try:
             from jarvis_pytest.devices.ubuntu.server.xshm import ShmGrabber
 
             self._shm: ShmGrabber | None = ShmGrabber(name)
         except OSError:
             self._shm = None  # e.g. an X server in another IPC namespace: the socket path still works
+        self._encoder = PngEncoder(layout="BGRX" if self._shm else "RGB")
 
     def size(self) -> tuple[int, int]:
         with self.lock:
@@ -149,6 +166,13 @@ class Screen:
         return ImageStat.Stat(small).stddev[0] >= min_stddev
 
     def png(self) -> bytes:
-        img = self.grab()
-        img = img if img.mode == "RGB" else img.convert("RGB")
-        return self._encoder.encode(img.tobytes(), *img.size)
+        """The screen with the cursor as PNG. With MIT-SHM the X server's own pixels go to the encoder as they are
+        (no image built: only the bands that changed are converted), the cursor drawn into them."""
+        if self._shm is None:
+            img = self.grab()
+            return self._encoder.encode(img.convert("RGB").tobytes(), *img.size)
+        shm = self._shm
+        pixels = shm.grab_bgrx()
+        x, y, cursor = self._pointer()
+        draw_on_bgrx(pixels, shm.width, shm.height, shm.stride, cursor, x, y)
+        return self._encoder.encode(pixels, shm.width, shm.height, shm.stride)

@@ -78,7 +78,7 @@ class ShmGrabber:
         img = self.image.contents
         if img.bits_per_pixel != 32 or img.red_mask != 0xFF0000 or img.byte_order != 0:
             raise OSError(f"unsupported X visual ({img.bits_per_pixel} bpp, red mask {img.red_mask:#x})")
-        self.size = img.bytes_per_line * img.height
+        self.stride, self.size = img.bytes_per_line, img.bytes_per_line * img.height
         # The X server (root) attaches the segment on behalf of the desktop user: the mode must let it.
         self.info.shmid = libc.shmget(0, self.size, _IPC_CREAT | 0o666)
         if self.info.shmid < 0:
@@ -92,9 +92,19 @@ class ShmGrabber:
         self.buffer = (ctypes.c_char * self.size).from_address(self.info.shmaddr)
         self.lock = threading.Lock()
 
+    def _get(self) -> None:
+        if not self._xext.XShmGetImage(self.dpy, self.root, self.image, 0, 0, _ALL_PLANES):
+            raise OSError("XShmGetImage failed")
+
     def grab(self) -> Image.Image:
         """The whole screen as an RGB image (a copy, safe to draw on)."""
         with self.lock:
-            if not self._xext.XShmGetImage(self.dpy, self.root, self.image, 0, 0, _ALL_PLANES):
-                raise OSError("XShmGetImage failed")
-            return Image.frombytes("RGB", (self.width, self.height), self.buffer, "raw", "BGRX", 0, 1)
+            self._get()
+            return Image.frombytes("RGB", (self.width, self.height), self.buffer, "raw", "BGRX", self.stride, 1)
+
+    def grab_bgrx(self) -> bytearray:
+        """The whole screen as the X server lays it out, 4 bytes a pixel (B, G, R, unused), rows of `stride`
+        bytes (a copy, safe to draw on)."""
+        with self.lock:
+            self._get()
+            return bytearray(self.buffer)

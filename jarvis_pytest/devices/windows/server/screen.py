@@ -27,7 +27,7 @@ class Screen:
         self.lock = threading.Lock()
         self._dib = None  # (width, height, memory DC, bitmap, bits pointer, stride)
         self._hotspots: dict[int, tuple[int, int]] = {}
-        self._encoder = PngEncoder(bgr=True)
+        self._encoder = PngEncoder(layout="BGR")
 
     def size(self) -> tuple[int, int]:
         _, _, cx, cy = virtual_screen()
