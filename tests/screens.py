@@ -1,8 +1,10 @@
-"""Test screenshots made with Pillow: a plain background with coloured rectangles at known places."""
+"""Test screenshots made with Pillow (a plain background with coloured rectangles at known places), and a strict
+reader of the devices' own PNGs."""
 
 from __future__ import annotations
 
 import io
+import zlib
 
 from PIL import Image, ImageDraw
 
@@ -31,3 +33,16 @@ def red_box(png: bytes) -> tuple[int, int, int, int]:
         box = mask.getbbox()
     assert box is not None, "no red element in the image"
     return box
+
+
+def strict_rows(png: bytes) -> bytes:
+    """The filtered rows of a PNG, its chunk CRCs and zlib stream (Adler-32 included) checked."""
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    pos, idat = 8, b""
+    while pos < len(png):
+        n = int.from_bytes(png[pos:pos + 4], "big")
+        kind, data = png[pos + 4:pos + 8], png[pos + 8:pos + 8 + n]
+        assert zlib.crc32(kind + data) == int.from_bytes(png[pos + 8 + n:pos + 12 + n], "big")
+        idat += data if kind == b"IDAT" else b""
+        pos += 12 + n
+    return zlib.decompress(idat)

@@ -12,19 +12,7 @@ import pytest
 from PIL import Image
 
 from jarvis_pytest.devices.png import BAND_ROWS, PngEncoder, adler32_combine, encode_png
-
-
-def strict_rows(png: bytes) -> bytes:
-    """The filtered rows of a PNG, its chunk CRCs and zlib stream (Adler-32 included) checked."""
-    assert png[:8] == b"\x89PNG\r\n\x1a\n"
-    pos, idat = 8, b""
-    while pos < len(png):
-        n = int.from_bytes(png[pos:pos + 4], "big")
-        kind, data = png[pos + 4:pos + 8], png[pos + 8:pos + 8 + n]
-        assert zlib.crc32(kind + data) == int.from_bytes(png[pos + 8 + n:pos + 12 + n], "big")
-        idat += data if kind == b"IDAT" else b""
-        pos += 12 + n
-    return zlib.decompress(idat)
+from screens import strict_rows
 
 
 def decoded(png: bytes, w: int, h: int) -> bytes:

@@ -10,7 +10,6 @@ from __future__ import annotations
 import io
 import time
 import uuid
-import zlib
 from dataclasses import dataclass
 from typing import Any
 
@@ -19,6 +18,7 @@ import pytest
 from PIL import Image, ImageChops, ImageStat
 
 from device_checks import check_concurrent_requests, check_refusals_keep_the_server_usable
+from screens import strict_rows
 from jarvis_pytest.devices import actions as A
 from jarvis_pytest.infra.cleanup import cleanup
 from jarvis_pytest.infra.containers import wait_until_ready
@@ -188,26 +188,13 @@ def test_ready_means_the_shell_desktop_with_its_taskbar(booted, device):
     assert tree["role"] == "desktop frame" and find(tree, lambda n: n.get("class") == "Shell_TrayWnd")
 
 
-def strict_pixels(png: bytes) -> bytes:
-    """The filtered rows of a PNG, its chunk CRCs and zlib stream (Adler-32 included) checked."""
-    assert png[:8] == b"\x89PNG\r\n\x1a\n"
-    pos, idat = 8, b""
-    while pos < len(png):
-        n = int.from_bytes(png[pos:pos + 4], "big")
-        kind, data = png[pos + 4:pos + 8], png[pos + 8:pos + 8 + n]
-        assert zlib.crc32(kind + data) == int.from_bytes(png[pos + 8 + n:pos + 12 + n], "big")
-        idat += data if kind == b"IDAT" else b""
-        pos += 12 + n
-    return zlib.decompress(idat)
-
-
 def test_screenshot_is_the_desktop_png_and_bmp(device, http):
     for x in (300, 1500):  # the second screenshot re-encodes only the bands the cursor crossed
         device.act(A.MoveTo(x=x, y=500))
         png = device.screenshot()
         img = Image.open(io.BytesIO(png))
         assert img.size == (1920, 1080) == device.screen_size()
-        assert len(strict_pixels(png)) == 1080 * (1920 * 3 + 1)
+        assert len(strict_rows(png)) == 1080 * (1920 * 3 + 1)
         assert max(ImageStat.Stat(img.convert("L")).stddev) > 3, "the screenshot is blank"
         bmp = Image.open(io.BytesIO(http.get("/screenshot", params={"format": "bmp"}).content)).convert("RGB")
         assert bmp.tobytes() == img.convert("RGB").tobytes()
