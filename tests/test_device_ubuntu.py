@@ -143,7 +143,11 @@ img = Image.new("RGB", (1920, 1080), "#3a6ea5")
 for _ in range(5):  # a few changed rows: the other bands are reused, every pixel still right
     img.paste(Image.frombytes("RGB", (50, 3), os.urandom(450)), (random.randrange(1870), random.randrange(1077)))
     assert Image.open(io.BytesIO(enc.encode(img.tobytes(), 1920, 1080))).tobytes() == img.tobytes()
-from jarvis_pytest.devices.ubuntu.server.screen import draw_on_bgrx
+from jarvis_pytest.devices.png import packed_rgb
+from jarvis_pytest.devices.ubuntu.server.screen import bgrx_to_rgb, draw_on_bgrx
+for w, rows, stride in ((1920, 32, 7680), (7, 3, 28), (5, 4, 24)):  # Pillow converts as the standard library does
+    data = os.urandom(stride * rows)
+    assert bytes(bgrx_to_rgb(data, w, rows, stride)) == bytes(packed_rgb("BGRX")(data, w, rows, stride)), w
 cursor = Image.frombytes("RGBA", (24, 24), os.urandom(24 * 24 * 4))
 screen = Image.frombytes("RGB", (300, 200), os.urandom(300 * 200 * 3))
 for x, y in ((10, 10), (-5, -7), (290, 190), (-30, 5), (0, 199), (300, 0)):  # inside, clipped, off the screen
@@ -166,8 +170,8 @@ print("same")
 def test_the_screenshot_encoder_keeps_every_pixel(device):
     """The control server's PNG writer (`devices/png.py`), run where it runs: random images of several sizes,
     then one screen with a few rows changed at a time, decode (with Pillow) to exactly their pixels; the cursor
-    drawn into the X server's pixels is what Pillow draws, clipped at the screen's edges, and a live screenshot is
-    the screen Pillow grabs."""
+    drawn into the X server's pixels is what Pillow draws, clipped at the screen's edges, Pillow's conversion of
+    those pixels is the shared encoder's own, and a live screenshot is the screen Pillow grabs."""
     out = device.run(f"python3 -c '{ENCODE_CHECK}'")
     assert out.returncode == 0 and out.stdout.strip() == "same", out
 

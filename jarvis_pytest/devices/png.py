@@ -16,6 +16,7 @@ import struct
 import threading
 import zlib
 from concurrent.futures import ThreadPoolExecutor
+from typing import Callable
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 BAND_ROWS = 32
@@ -42,22 +43,28 @@ def adler32_combine(adler1: int, adler2: int, len2: int) -> int:
     return sum1 | (sum2 << 16)
 
 
-def _rgb(pixels, layout: str):
-    """Packed RGB of pixels in `layout` (see PIXEL_BYTES)."""
-    if layout == "RGB":
-        return pixels
+def packed_rgb(layout: str) -> Callable[[bytes, int, int, int], bytes]:
+    """The standard library's converter of rows in `layout` to packed RGB: `convert(pixels, width, rows, stride)`
+    (any padding past a row's pixels dropped)."""
     step = PIXEL_BYTES[layout]
-    rgb = bytearray(len(pixels) // step * 3)
-    rgb[0::3], rgb[1::3], rgb[2::3] = pixels[2::step], pixels[1::step], pixels[0::step]
-    return rgb
+
+    def convert(pixels: bytes, width: int, rows: int, stride: int) -> bytes:
+        used = width * step
+        if stride != used:
+            pixels = b"".join(pixels[i * stride:i * stride + used] for i in range(rows))
+        if layout == "RGB":
+            return pixels
+        rgb = bytearray(width * rows * 3)
+        rgb[0::3], rgb[1::3], rgb[2::3] = pixels[2::step], pixels[1::step], pixels[0::step]
+        return rgb
+
+    return convert
 
 
-def _band(pixels: bytes, width: int, rows: int, stride: int, level: int, layout: str) -> tuple[bytes, int, int]:
+def _band(pixels: bytes, width: int, rows: int, stride: int, level: int,
+          to_rgb: Callable[[bytes, int, int, int], bytes]) -> tuple[bytes, int, int]:
     """(raw deflate ending on a byte boundary, Adler-32, length) of `rows` rows: filter byte 0, then RGB."""
-    used = width * PIXEL_BYTES[layout]
-    if stride != used:
-        pixels = b"".join(pixels[i * stride:i * stride + used] for i in range(rows))
-    rgb, row = _rgb(pixels, layout), width * 3
+    rgb, row = to_rgb(pixels, width, rows, stride), width * 3
     raw = b"\0" + b"\0".join(rgb[i * row:(i + 1) * row] for i in range(rows))
     z = zlib.compressobj(level, zlib.DEFLATED, -15)
     return z.compress(raw) + z.flush(zlib.Z_SYNC_FLUSH), zlib.adler32(raw), len(raw)
@@ -74,13 +81,17 @@ def _png(width: int, height: int, bands: list[tuple[bytes, int, int]]) -> bytes:
 
 class PngEncoder:
     """PNG encoding of successive frames of one screen, reusing the compressed bands that did not change
-    (thread-safe). `layout`: how a pixel lies in memory, "RGB", "BGR" (GDI) or "BGRX" (X, 32 bits a pixel)."""
+    (thread-safe). `layout`: how a pixel lies in memory, "RGB", "BGR" (GDI) or "BGRX" (X, 32 bits a pixel);
+    `to_rgb`: a faster converter of such rows to packed RGB where there is one (`packed_rgb`'s signature;
+    Pillow's is 4x faster than the standard library's)."""
 
-    def __init__(self, level: int = 1, threads: int = 2, layout: str = "RGB"):
+    def __init__(self, level: int = 1, threads: int = 2, layout: str = "RGB",
+                 to_rgb: Callable[[bytes, int, int, int], bytes] | None = None):
         if layout not in PIXEL_BYTES:
             raise ValueError(f"pixel layout {layout!r}: one of {', '.join(PIXEL_BYTES)}")
         self.level = level
         self.layout = layout
+        self.to_rgb = to_rgb or packed_rgb(layout)
         self.lock = threading.Lock()
         self.pool = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="png")
         self._key: tuple[int, int, int] | None = None
@@ -108,7 +119,7 @@ class PngEncoder:
                 if not (same_size and frame[lo:hi] == self._frame[lo:hi]):
                     rows = min(BAND_ROWS, height - top)
                     jobs[i] = self.pool.submit(_band, frame[lo:lo + step], width, rows, stride, self.level,
-                                               self.layout)
+                                               self.to_rgb)
             bands = self._bands if same_size else [None] * len(starts)
             for i, job in jobs.items():
                 bands[i] = job.result()
@@ -122,6 +133,7 @@ def encode_png(pixels, width: int, height: int, stride: int | None = None, *, la
     """PNG (8-bit truecolour) of one frame of top-down rows of `stride` bytes, nothing kept."""
     stride = stride or width * PIXEL_BYTES[layout]
     data = bytes(memoryview(pixels)[:stride * height])
+    to_rgb = packed_rgb(layout)
     bands = [_band(data[top * stride:(top + BAND_ROWS) * stride], width, min(BAND_ROWS, height - top), stride,
-                   level, layout) for top in range(0, height, BAND_ROWS)]
+                   level, to_rgb) for top in range(0, height, BAND_ROWS)]
     return _png(width, height, bands)
