@@ -6,8 +6,8 @@ byte boundary) so the bands concatenate into one zlib stream; the stream's Adler
 `PngEncoder` keeps the last frame: a band whose pixels did not change reuses its compressed bytes, so an agent's
 next screenshot after a click or a few typed letters costs the few bands that changed (a whole 1920x1080 frame
 costs about 15 ms of zlib). Changed bands are compressed on two threads (zlib releases the GIL). Pixels other
-than RGB are reordered with extended-slice assignments (C loops), never per pixel in Python, and only in the bands
-that changed.
+than RGB are reordered only in the bands that changed: with extended-slice assignments (C loops, never per pixel
+in Python), or by a faster converter the caller has (Pillow's, in the Ubuntu server).
 """
 
 from __future__ import annotations
