@@ -11,8 +11,13 @@ import zlib
 import pytest
 from PIL import Image
 
-from jarvis_pytest.devices.png import BAND_ROWS, PngEncoder, adler32_combine, encode_png
+from jarvis_pytest.devices.png import BAND_ROWS, PngEncoder, adler32_combine
 from screens import strict_rows
+
+
+def encode_png(pixels, w: int, h: int, stride: int | None = None, layout: str = "RGB") -> bytes:
+    """One frame, by an encoder that has seen no other."""
+    return PngEncoder(layout=layout).encode(pixels, w, h, stride)
 
 
 def decoded(png: bytes, w: int, h: int) -> bytes:
@@ -48,7 +53,7 @@ def test_padded_rows_lose_their_padding():
         data = img.tobytes("raw", layout)
         used = len(data) // h
         padded = b"".join(data[r * used:(r + 1) * used] + b"\xee" * (stride - used) for r in range(h))
-        assert decoded(encode_png(padded, w, h, stride, layout=layout), w, h) == img.tobytes(), layout
+        assert decoded(encode_png(padded, w, h, stride, layout), w, h) == img.tobytes(), layout
 
 
 def test_successive_frames_reuse_unchanged_bands_and_stay_exact():

@@ -127,13 +127,3 @@ class PngEncoder:
             self._png = _png(width, height, bands)
             return self._png
 
-
-def encode_png(pixels, width: int, height: int, stride: int | None = None, *, layout: str = "RGB",
-               level: int = 1) -> bytes:
-    """PNG (8-bit truecolour) of one frame of top-down rows of `stride` bytes, nothing kept."""
-    stride = stride or width * PIXEL_BYTES[layout]
-    data = bytes(memoryview(pixels)[:stride * height])
-    to_rgb = packed_rgb(layout)
-    bands = [_band(data[top * stride:(top + BAND_ROWS) * stride], width, min(BAND_ROWS, height - top), stride,
-                   level, to_rgb) for top in range(0, height, BAND_ROWS)]
-    return _png(width, height, bands)
