@@ -176,8 +176,8 @@ class Screen:
         """The screen with the cursor as PNG. With MIT-SHM the X server's own pixels go to the encoder as they are
         (no image built: only the bands that changed are converted), the cursor drawn into them."""
         if self._shm is None:
-            img = self.grab()
-            return self._encoder.encode(img.convert("RGB").tobytes(), *img.size)
+            img = self.grab()  # RGB from either grab: converted only if not, as a copy costs 6-8 MB
+            return self._encoder.encode((img if img.mode == "RGB" else img.convert("RGB")).tobytes(), *img.size)
         shm = self._shm
         pixels = shm.grab_bgrx()
         x, y, cursor = self._pointer()
