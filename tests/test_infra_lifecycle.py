@@ -209,6 +209,90 @@ def test_a_kept_drive_volume_goes_only_to_a_task_whose_device_mounts_it(standin_
     assert leftovers(lc.run_id) == []
 
 
+def _held_backend(platform: str = "held") -> str:
+    """A stand-in platform whose devices run in a holder's network namespace (`Backend.holder`)."""
+    import httpx
+
+    def answers(url: str, timeout: float) -> None:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            try:
+                if httpx.get(url, timeout=1).status_code == 200:
+                    return
+            except httpx.HTTPError:
+                pass
+            time.sleep(0.05)
+        raise InfrastructureError(f"held stand-in at {url} not ready")
+
+    register_backend(Backend(platform=platform, image="transfer", port=8000, connect=lambda url: url,
+                             wait_ready=answers, holder=True,
+                             container_options={"command": ["python3", "-m", "http.server", "8000"]}))
+    return platform
+
+
+def test_a_held_device_runs_in_its_holder_which_alone_is_on_the_network(device_images, lifecycle):
+    from jarvis_pytest.infra.egress import device_routes
+
+    platform = _held_backend()
+    env = Lifecycle(lifecycle.run_id, "gw5").boot((platform,))
+    try:
+        device, holder = env.containers[platform], env.holders[platform].container
+        device.reload()
+        holder.reload()
+        assert device.attrs["HostConfig"]["NetworkMode"] == f"container:{holder.id}"
+        assert not bindings(device) and not device.attrs["NetworkSettings"]["Networks"]  # nothing of its own
+        bs = bindings(holder)
+        assert bs and all(b["HostIp"] == "127.0.0.1" for b in bs), bs
+        assert env.urls[platform] == f"http://127.0.0.1:{bs[0]['HostPort']}" == env.holders[platform].url
+        assert set(holder.attrs["NetworkSettings"]["Networks"]) == {env.network.name}
+        assert holder.labels[LABEL_ROLE] == "holder" and holder.labels[LABEL_PLATFORM] == platform
+        assert holder.labels[LABEL_RUN] == lifecycle.run_id and holder.labels[LABEL_PID] == str(os.getpid())
+        assert holder.attrs["Config"]["Entrypoint"] == ["sleep", "infinity"] and not holder.attrs["Config"]["Cmd"]
+        # the device's namespace is the holder's: its address on the task network, no default route
+        routes = device_routes(device)
+        assert routes and not any(r.startswith("default") for r in routes) and routes == device_routes(holder)
+        # the device serves through the holder's port, and reaches the drive by its name
+        import httpx
+        assert httpx.get(env.urls[platform], timeout=5).status_code == 200
+        probe = device.exec_run(["curl", "-s", "-o", "/dev/null", "-w", "%{http_code}", "-H", "PW: agentPassword",
+                                 "http://transfer:5244/data/?ls"])
+        assert probe.output == b"200"
+        assert sorted(attached(env.network)) == sorted([holder.name, env.containers["transfer"].name])
+    finally:
+        env.close()
+    assert leftovers(lifecycle.run_id) == []
+
+
+def test_a_kept_holder_serves_the_next_device_only_when_nothing_runs_in_it(device_images, lifecycle, capfd):
+    import httpx
+
+    platform = _held_backend()
+    lc = Lifecycle(lifecycle.run_id, "gw6", keep_networks=1)
+    first = lc.boot((platform,))
+    holder, device = first.holders[platform].container, first.containers[platform]
+    first.close()
+    assert holder.name in leftovers(lc.run_id) and device.name not in leftovers(lc.run_id)
+    second = lc.boot((platform,))
+    assert second.holders[platform].container.id == holder.id and second.urls[platform] == first.urls[platform]
+    assert second.containers[platform].id != device.id and lc.networks.created == 1
+    assert httpx.get(second.urls[platform], timeout=5).status_code == 200  # the new device answers there
+    second.close()
+    # something of the run still in the kept holder's namespace (a device whose removal failed): not reused
+    stray = docker.from_env().containers.run("jarvis/transfer", ["sleep", "600"], name=f"{lc.run_id}-in-holder",
+                                             network_mode=f"container:{holder.id}", detach=True,
+                                             labels={LABEL_RUN: lc.run_id})
+    capfd.readouterr()
+    third = lc.boot((platform,))
+    assert third.network.name != first.network.name and third.holders[platform].container.id != holder.id
+    assert f"still has {stray.name} on it: not reused" in capfd.readouterr().err
+    assert holder.name not in leftovers(lc.run_id)  # the kept holder and drive were removed
+    third.close()
+    lc.close()
+    stray.remove(force=True)
+    assert leftovers(lc.run_id) == [first.network.name]  # left alone while the stray was in it, as for any network
+    docker.from_env().networks.get(first.network.name).remove()
+
+
 def test_the_real_ubuntu_device_on_loopback(ubuntu_env):
     for c in ubuntu_env.containers.values():
         assert all(b["HostIp"] == "127.0.0.1" for b in bindings(c))
@@ -336,12 +420,12 @@ def test_cleanup_after_the_run_is_killed(standin_platforms, device_images):
         assert proc.stdout.readline().strip() == "booted"
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(10)
-        assert len(leftovers(run_id)) == 3  # ubuntu, transfer, network: a kill -9 leaves them
+        assert len(leftovers(run_id)) == 4  # ubuntu, its holder, transfer, network: a kill -9 leaves them
         killed_net = [n.name for n in docker.from_env().networks.list(filters={"label": f"{LABEL_RUN}={run_id}"})]
         assert [within_rules(n) for n in killed_net] == [1]  # the network's own accept rule stays with it
         # another worker of the same run is still alive: cleaning orphans must spare its environment
         live = Lifecycle(run_id, "gw1").boot(standin_platforms[:1])
-        assert cleanup(run_id, orphans_only=True) == {"containers": 2, "networks": 1, "volumes": 0}
+        assert cleanup(run_id, orphans_only=True) == {"containers": 3, "networks": 1, "volumes": 0}
         assert leftovers(run_id) == sorted([*(c.name for c in live.containers.values()), live.network.name])
         assert [within_rules(n) for n in [*killed_net, live.network.name]] == [0, 1]  # the rule went first
         assert live.transfer.list("/") == (["data"], [])

@@ -45,6 +45,8 @@ class Backend:
     cpus: float | None = None                    # default CPU limit of one device
     stand_in: bool = False                       # not the real platform (e.g. Windows under Wine)
     drive_mount: str | None = None               # where the device mounts the task's drive storage, if it does
+    holder: bool = False                         # the default boot runs the device in a kept `PortHolder`'s
+                                                 # network namespace (only for devices without NET_ADMIN)
     unavailable: Callable[[], str | None] = lambda: None  # why it cannot run on this machine (None: it can)
     how_to_run: str = ""                         # what a user does to run this backend where it cannot run yet
 

@@ -42,15 +42,17 @@ def docker_name(*parts: str) -> str:
     return re.sub(r"[^a-zA-Z0-9_.-]", "-", "-".join(p for p in parts if p)).strip("-.") or "jarvis"
 
 
-def start_container(docker: Any, image: str, name: str, *, network: Any, labels: dict[str, str], port: int,
+def start_container(docker: Any, image: str, name: str, *, network: Any, labels: dict[str, str], port: int | None,
                     aliases: tuple[str, ...] = (), memory: str | None = None, cpus: float | None = None,
                     options: dict[str, Any] | None = None) -> Any:
-    """Create and start a detached container on `network` with `port` published on a free 127.0.0.1 port."""
-    kwargs: dict[str, Any] = dict(
-        detach=True, name=name, labels=labels, network=network.name,
-        networking_config={network.name: docker.api.create_endpoint_config(aliases=list(aliases) or None)},
-        ports={f"{port}/tcp": ("127.0.0.1", None)},
-    )
+    """Create and start a detached container on `network` with `port` published on a free 127.0.0.1 port
+    (`network` None: no network or port of its own; `options` then say whose namespace it joins)."""
+    kwargs: dict[str, Any] = dict(detach=True, name=name, labels=labels)
+    if network is not None:
+        kwargs.update(
+            network=network.name,
+            networking_config={network.name: docker.api.create_endpoint_config(aliases=list(aliases) or None)},
+            ports={f"{port}/tcp": ("127.0.0.1", None)})
     if memory:
         kwargs["mem_limit"] = memory
     if cpus:
@@ -163,6 +165,40 @@ def remove_volumes(volumes: list[Any]) -> list[str]:
     return problems
 
 
+HOLDER_ROLE = "holder"
+HOLDER_MEMORY = "16m"
+
+
+@dataclass
+class PortHolder:
+    """A container that only holds a network namespace on a task network: a device's address there and its
+    control port, published on 127.0.0.1. A device of a backend with `Backend.holder` runs in it (Docker's
+    `network_mode: container:`), so its start costs the engine no network set-up. Here that set-up cost dockerd
+    about 0.15 CPU-s a container: three re-executions of itself (a new namespace, its IPv6 setting, the
+    `libnetwork-setkey` prestart hook), an endpoint, firewall rules and a port proxy. The holder outlives its
+    device: its network keeps it for the next device of its platform (`infra/networks.py`)."""
+
+    container: Any
+    url: str                 # http://127.0.0.1:<published port> of the control port
+
+    @property
+    def network_mode(self) -> str:
+        """The `network_mode` of a device that runs in this holder's namespace."""
+        return f"container:{self.container.id}"
+
+
+def start_holder(backend: "Backend", request: "BootRequest") -> PortHolder:
+    """A new holder for `backend`'s devices on the request's network: its image, doing nothing but `sleep`, with
+    the control port published and (unless egress is allowed) no default route."""
+    c = start_container(request.docker, backend.image_ref, f"{request.name}-net", network=request.network,
+                        labels={**request.labels, LABEL_ROLE: HOLDER_ROLE}, port=backend.port,
+                        memory=HOLDER_MEMORY, options={"entrypoint": ["sleep", "infinity"]})
+    request.started.append(c)
+    if not request.egress:
+        egress.cut_default_route(c)
+    return PortHolder(c, host_url(c, backend.port))
+
+
 @dataclass
 class BootRequest:
     """What `infra/` hands a backend to boot one device of a task."""
@@ -178,6 +214,7 @@ class BootRequest:
     volumes: dict[str, dict[str, str]] = field(default_factory=dict)  # docker-py `volumes` (e.g. the drive)
     stop: threading.Event = field(default_factory=threading.Event)    # set when the task's boot is abandoned
     started: list[Any] = field(default_factory=list)  # containers made so far: removed if the boot fails
+    holder: PortHolder | None = None # the namespace a device of a `Backend.holder` backend joins
 
 
 @dataclass
@@ -191,20 +228,28 @@ class BootedDevice:
 
 def boot_container(backend: "Backend", request: BootRequest) -> BootedDevice:
     """The default boot of a backend: one container of its image on the task network, its control port published
-    on 127.0.0.1, no way out unless egress is allowed, then `wait_ready` while the container is watched."""
+    on 127.0.0.1, no way out unless egress is allowed, then `wait_ready` while the container is watched. With
+    `request.holder` the container runs in the holder's network namespace instead, which has all of that."""
     options = dict(backend.container_options)
     if request.volumes:
         options["volumes"] = {**options.get("volumes", {}), **request.volumes}
-    c = start_container(request.docker, backend.image_ref, request.name, network=request.network,
-                        labels=request.labels, port=backend.port, memory=request.memory, cpus=request.cpus,
+    holder = request.holder
+    if holder is not None:
+        options["network_mode"] = holder.network_mode
+    c = start_container(request.docker, backend.image_ref, request.name,
+                        network=None if holder else request.network, labels=request.labels,
+                        port=None if holder else backend.port, memory=request.memory, cpus=request.cpus,
                         options=options)
     request.started.append(c)
     booted = BootedDevice(container=c, url="", backend=backend)
     if request.stop.is_set():
         raise InfrastructureError("boot cancelled")
-    if not request.egress:
-        egress.cut_default_route(c)
-    booted.url = host_url(c, backend.port)
+    if holder is not None:
+        booted.url = holder.url
+    else:
+        if not request.egress:
+            egress.cut_default_route(c)
+        booted.url = host_url(c, backend.port)
     wait_until_ready(c, lambda t: backend.wait_ready(booted.url, t), request.ready_timeout,
                      f"the {backend.label} device")
     return booted

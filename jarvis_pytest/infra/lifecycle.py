@@ -67,6 +67,7 @@ class TaskEnvironment:
     worker: str = ""                      # the xdist worker (gw0, …; main without xdist) it was booted for
     boot_started: float = 0.0             # wall-clock time (time.time()) its boot began
     networks: TaskNetworks | None = None  # where its network came from (None: removed with it)
+    holders: dict[str, ctr.PortHolder] = field(default_factory=dict)  # platform → holder its device ran in
     _booted: list[Any] = field(default_factory=list)
     _closed: bool = False
 
@@ -100,12 +101,15 @@ class TaskEnvironment:
         drive = self.containers.get(TRANSFER_ROLE)
         rest = [c for c in self.containers.values() if id(c) not in owned and c is not drive]
         problems += ctr.remove_all(rest)
+        if self.networks is None:
+            problems += ctr.remove_all([h.container for h in self.holders.values()])
         if drive is not None and self.networks is not None and self.networks.keep_drives:
             kept = KeptDrive(drive, self.urls[TRANSFER_ROLE], self.volumes[0] if self.volumes else None)
-            problems += self.networks.give_back(self.network, drive=kept)  # kept with it, or removed
+            problems += self.networks.give_back(self.network, drive=kept, holders=self.holders)  # kept, or removed
         else:
             problems += ctr.remove_all([drive] if drive is not None else [])
-            problems += self.networks.give_back(self.network) if self.networks else remove_network(self.network)
+            problems += (self.networks.give_back(self.network, holders=self.holders) if self.networks
+                         else remove_network(self.network))
             problems += ctr.remove_volumes(self.volumes)
         report_leftovers(problems, self.run_id)
 
@@ -222,10 +226,11 @@ class Lifecycle:
         base = self._next_name()
         boot_started = time.time()
         mounted = any(b.drive_mount for b in backends.values())  # a device mounts the drive's storage
-        network, kept = self.networks.take(base, volume=mounted)
+        network, kept, holders = self.networks.take(base, volume=mounted)
         volumes: list[Any] = []
         stop = threading.Event()
-        started: list[Any] = []                       # every container made, by any thread
+        started: list[Any] = [h.container for h in holders.values()]  # every container made (by any thread), or
+                                                                      # taken: all removed if the boot fails
         booted: dict[str, ctr.BootedDevice] = {}
         clients: dict[str, Any] = {}
         urls: dict[str, str] = {}
@@ -285,6 +290,11 @@ class Lifecycle:
                     memory=self.limits.memory or backend.memory, cpus=self.limits.cpus or backend.cpus,
                     ready_timeout=self.limits.ready_timeout or backend.ready_timeout, egress=self.egress,
                     volumes=vols, stop=stop, started=started)
+                if backend.holder:
+                    request.holder = holders.get(platform) or ctr.start_holder(backend, request)
+                    holders[platform] = request.holder
+                    if stop.is_set():
+                        raise InfrastructureError("boot cancelled")
                 booted[platform] = backend.boot(request)
                 urls[platform] = booted[platform].url
 
@@ -311,6 +321,8 @@ class Lifecycle:
             raise
         containers: dict[str, Any] = {}
         for c in started:
+            if c.labels.get(ctr.LABEL_ROLE) == ctr.HOLDER_ROLE:
+                continue
             role = c.labels.get(ctr.LABEL_PLATFORM) or TRANSFER_ROLE
             containers[role] = c
         image_ids = {role: c.attrs["Image"] for role, c in containers.items()}
@@ -320,4 +332,4 @@ class Lifecycle:
                                stand_ins=tuple(p for p, b in backends.items() if b.stand_in),
                                egress=self.egress, volumes=volumes, _booted=list(booted.values()),
                                engine=engines.name(self.docker_host), worker=self.worker, boot_started=boot_started,
-                               networks=self.networks)
+                               networks=self.networks, holders=holders)

@@ -12,6 +12,10 @@ hands one out again only once the engine lists no container on it but that drive
 holds the containers of at most one task, as a new network would. What is not kept is removed: the drive and its
 volume, the network's firewall rule, then its bridge. `close` removes the kept ones. A worker that is killed
 leaves them to `jarvis cleanup`: they carry the labels and process id of their worker, like the devices.
+
+A kept network also keeps its device holders (`containers.PortHolder`: a namespace with an address and a
+published control port, per platform), which spare each later device the engine's network set-up. A holder is
+handed out again only once no container of the run runs in its namespace.
 """
 
 from __future__ import annotations
@@ -90,14 +94,26 @@ class KeptDrive:
         return ctr.remove_all([self.container]) + ctr.remove_volumes([self.volume] if self.volume else [])
 
 
-def _others_on(network: Any, drive: KeptDrive | None) -> list[str]:
-    """The containers on `network` other than its kept `drive`."""
-    return [n for n in attached(network) if drive is None or n != drive.container.name]
+Holders = dict[str, ctr.PortHolder]  # platform → its kept holder
 
 
-def _remove(network: Any, drive: KeptDrive | None) -> list[str]:
-    """Remove the kept drive (if any), then the network. Returns what could not be removed."""
-    return (drive.remove() if drive else []) + remove_network(network)
+def _others_on(network: Any, drive: KeptDrive | None, holders: Holders, run_id: str) -> list[str]:
+    """The containers on `network` other than its kept `drive` and `holders`, and those of run `run_id` that run
+    in a holder's namespace (a device there is not listed on the network)."""
+    mine = {h.container.name for h in holders.values()} | ({drive.container.name} if drive else set())
+    others = [n for n in attached(network) if n not in mine]
+    if holders:
+        modes = {h.network_mode for h in holders.values()}
+        others += sorted(c["Names"][0].lstrip("/") for c in network.client.api.containers(
+            all=True, filters={"label": f"{ctr.LABEL_RUN}={run_id}"})
+            if (c.get("HostConfig") or {}).get("NetworkMode") in modes)
+    return others
+
+
+def _remove(network: Any, drive: KeptDrive | None, holders: Holders | None = None) -> list[str]:
+    """Remove the kept drive (if any) and holders, then the network. Returns what could not be removed."""
+    return ((drive.remove() if drive else []) + ctr.remove_all([h.container for h in (holders or {}).values()])
+            + remove_network(network))
 
 
 class TaskNetworks:
@@ -109,46 +125,49 @@ class TaskNetworks:
         self.docker, self.run_id, self.worker, self.egress = docker, run_id, worker, egress
         self.keep = keep  # networks kept for later tasks, at most (0: every network is removed with its task)
         self.keep_drives = bool(keep) and keep_drives  # give_back may keep a network's drive with it
-        self._free: list[tuple[Any, KeptDrive | None]] = []
+        self._free: list[tuple[Any, KeptDrive | None, Holders]] = []
         self._lock = threading.Lock()
         self._closed = False
         self.created = 0  # networks this created, for tests and benchmarks
 
-    def take(self, name: str, volume: bool = False) -> tuple[Any, KeptDrive | None]:
-        """A network no container is on but its kept drive, if any: a kept one with that drive (the oldest whose
-        drive has a volume exactly when `volume`, else the oldest), else a new one named `name` (and no drive)."""
+    def take(self, name: str, volume: bool = False) -> tuple[Any, KeptDrive | None, Holders]:
+        """A network no container is on but its kept drive and holders, if any: a kept one with them (the oldest
+        whose drive has a volume exactly when `volume`, else the oldest), else a new one named `name` (with no
+        drive or holders)."""
         while True:
             with self._lock:
-                fits = [i for i, (_, d) in enumerate(self._free) if d and (d.volume is not None) == volume]
-                network, drive = self._free.pop(fits[0] if fits else 0) if self._free else (None, None)
+                fits = [i for i, (_, d, _) in enumerate(self._free) if d and (d.volume is not None) == volume]
+                network, drive, holders = self._free.pop(fits[0] if fits else 0) if self._free else (None, None, {})
             if network is None:
                 break
-            on_it = _others_on(network, drive)
+            on_it = _others_on(network, drive, holders, self.run_id)
             if not on_it:
-                return network, drive
-            problems = drive.remove() if drive else []
+                return network, drive, holders
+            problems = (drive.remove() if drive else []) + ctr.remove_all([h.container for h in holders.values()])
             print(f"[jarvis] network {network.name} still has {', '.join(on_it)} on it: not reused"
                   + (f" (could not remove {'; '.join(problems)})" if problems else ""), file=sys.stderr, flush=True)
         network = create_network(self.docker, name, self.run_id, self.worker, self.egress)
         with self._lock:
             self.created += 1
-        return network, None
+        return network, None, {}
 
-    def give_back(self, network: Any, reuse: bool = True, drive: KeptDrive | None = None) -> list[str]:
-        """Keep `network`, with `drive` still on it, for a later task when `reuse`, no other container is on it
-        and fewer than `keep` are kept; else remove the drive and the network. Returns what could not be
-        removed."""
-        if reuse and self.keep > 0 and not _others_on(network, drive):
+    def give_back(self, network: Any, reuse: bool = True, drive: KeptDrive | None = None,
+                  holders: Holders | None = None) -> list[str]:
+        """Keep `network`, with `drive` and `holders` still on it, for a later task when `reuse`, no other
+        container is on it or in a holder and fewer than `keep` are kept; else remove them and the network.
+        Returns what could not be removed."""
+        holders = dict(holders or {})
+        if reuse and self.keep > 0 and not _others_on(network, drive, holders, self.run_id):
             with self._lock:
                 if not self._closed and len(self._free) < self.keep:
-                    self._free.append((network, drive))
+                    self._free.append((network, drive, holders))
                     return []
-        return _remove(network, drive)
+        return _remove(network, drive, holders)
 
     def close(self) -> list[str]:
-        """Remove the kept drives and networks; later `give_back`s remove theirs (idempotent). Returns what could
-        not be removed."""
+        """Remove the kept drives, holders and networks; later `give_back`s remove theirs (idempotent). Returns
+        what could not be removed."""
         with self._lock:
             self._closed = True
             free, self._free = self._free, []
-        return [p for network, drive in free for p in _remove(network, drive)]
+        return [p for network, drive, holders in free for p in _remove(network, drive, holders)]

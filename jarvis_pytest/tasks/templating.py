@@ -15,7 +15,8 @@ import ntpath
 import posixpath
 import re
 from dataclasses import dataclass
-from typing import Any, Iterator, Mapping
+from collections.abc import Iterator, Mapping
+from typing import Any
 
 from jarvis_pytest.errors import ConfigError
 
@@ -130,5 +131,12 @@ def render_data(obj: Any, values: Mapping[str, Scalar], where: Where = Where()) 
 
 
 def has_placeholder(obj: Any) -> bool:
-    """Whether any string in `obj` still contains `{{` or `}}` (an unrendered placeholder)."""
-    return any(STRAY_BRACES.search(s) for s, _ in walk_strings(obj, Where()))
+    """Whether any string in `obj` still contains `{{` or `}}` (an unrendered placeholder). Keys are not
+    looked at, as in `walk_strings`; no locations are made (every composed task is checked at each start)."""
+    if isinstance(obj, str):
+        return STRAY_BRACES.search(obj) is not None
+    if isinstance(obj, Mapping):
+        return any(has_placeholder(v) for v in obj.values())
+    if isinstance(obj, (list, tuple)):
+        return any(has_placeholder(v) for v in obj)
+    return False

@@ -14,4 +14,5 @@ BACKEND = Backend(
     container_options={"shm_size": "512m"},
     memory="4g",
     ready_timeout=60.0,
+    holder=True,
 )

@@ -17,7 +17,7 @@ def _connect(url: str) -> DesktopDevice:
 
 WINE = Backend(
     platform="windows", name="wine", image="windows", connect=_connect, wait_ready=wait_ready,
-    memory="2g", ready_timeout=60.0, stand_in=True, drive_mount=DRIVE_MOUNT,
+    memory="2g", ready_timeout=60.0, stand_in=True, drive_mount=DRIVE_MOUNT, holder=True,
     how_to_run="`jarvis images build --only windows` (offline, from Debian's Wine)",
 )
 
