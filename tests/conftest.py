@@ -46,31 +46,42 @@ def ubuntu_env(device_images):
 STANDIN_PLATFORMS = ("standin-a", "standin-b")
 
 
-def register_standin_backends() -> tuple[str, ...]:
-    """Two light stand-in device platforms for infrastructure tests: real containers of the transfer image whose
-    "control server" is `python3 -m http.server` on port 8000 (ready when it answers); devices are their URLs."""
+def _standin_ready(url: str, timeout: float) -> None:
+    """A stand-in device is ready when its `http.server` answers."""
     import time
 
     import httpx
 
-    from jarvis_pytest.devices.backend import Backend, register_backend
     from jarvis_pytest.errors import InfrastructureError
 
-    def wait_ready(url: str, timeout: float) -> None:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            try:
-                if httpx.get(url, timeout=1).status_code == 200:
-                    return
-            except httpx.HTTPError:
-                pass
-            time.sleep(0.05)
-        raise InfrastructureError(f"stand-in device at {url} not ready after {timeout:.1f} s")
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            if httpx.get(url, timeout=1).status_code == 200:
+                return
+        except httpx.HTTPError:
+            pass
+        time.sleep(0.05)
+    raise InfrastructureError(f"stand-in device at {url} not ready after {timeout:.1f} s")
+
+
+def standin_backend(platform: str, **changes):
+    """A light stand-in device backend for infrastructure tests: a real container of the transfer image whose
+    "control server" is `python3 -m http.server` on port 8000 (ready when it answers); a device is its URL.
+    `changes` set other fields (e.g. `holder=True`)."""
+    from jarvis_pytest.devices.backend import Backend
+
+    return Backend(platform=platform, image="transfer", port=8000, connect=lambda url: url,
+                   wait_ready=_standin_ready,
+                   container_options={"command": ["python3", "-m", "http.server", "8000"]}, **changes)
+
+
+def register_standin_backends() -> tuple[str, ...]:
+    """Two stand-in device platforms (`standin_backend`), registered."""
+    from jarvis_pytest.devices.backend import register_backend
 
     for platform in STANDIN_PLATFORMS:
-        register_backend(Backend(platform=platform, image="transfer", port=8000, connect=lambda url: url,
-                                 wait_ready=wait_ready,
-                                 container_options={"command": ["python3", "-m", "http.server", "8000"]}))
+        register_backend(standin_backend(platform))
     return STANDIN_PLATFORMS
 
 

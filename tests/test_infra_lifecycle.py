@@ -13,7 +13,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import docker
 import pytest
-from conftest import within_rules
+from conftest import standin_backend, within_rules
 
 from jarvis_pytest.devices.backend import Backend, register_backend
 from jarvis_pytest.errors import InfrastructureError
@@ -211,22 +211,7 @@ def test_a_kept_drive_volume_goes_only_to_a_task_whose_device_mounts_it(standin_
 
 def _held_backend(platform: str = "held") -> str:
     """A stand-in platform whose devices run in a holder's network namespace (`Backend.holder`)."""
-    import httpx
-
-    def answers(url: str, timeout: float) -> None:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            try:
-                if httpx.get(url, timeout=1).status_code == 200:
-                    return
-            except httpx.HTTPError:
-                pass
-            time.sleep(0.05)
-        raise InfrastructureError(f"held stand-in at {url} not ready")
-
-    register_backend(Backend(platform=platform, image="transfer", port=8000, connect=lambda url: url,
-                             wait_ready=answers, holder=True,
-                             container_options={"command": ["python3", "-m", "http.server", "8000"]}))
+    register_backend(standin_backend(platform, holder=True))
     return platform
 
 
