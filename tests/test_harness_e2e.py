@@ -192,6 +192,8 @@ def test_keep_devices_leaves_them_running_and_says_how_to_reach_them(device_imag
         import docker
 
         kept = docker.from_env().containers.list(filters={"label": f"org.jarvis.run={resource_id(tmp_path)}"})
-        assert sorted(c.labels["org.jarvis.role"] for c in kept) == ["device", "transfer"]
+        assert sorted(c.labels["org.jarvis.role"] for c in kept) == ["device", "holder", "transfer"]
+        holder = next(c for c in kept if c.labels["org.jarvis.role"] == "holder")
+        assert "docker rm -f " in proc.stderr + proc.stdout and holder.name in proc.stderr + proc.stdout
     finally:
         subprocess.run([sys.executable, "-m", "jarvis_pytest.cli", "cleanup", "--run", str(tmp_path)], check=True)

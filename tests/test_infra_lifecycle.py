@@ -278,6 +278,25 @@ def test_a_kept_holder_serves_the_next_device_only_when_nothing_runs_in_it(devic
     docker.from_env().networks.get(first.network.name).remove()
 
 
+def test_a_holder_whose_files_a_device_changed_is_not_kept(device_images, lifecycle):
+    """A device's root can write the /etc/hosts, /etc/resolv.conf and /etc/hostname it shares with its holder; a
+    holder so changed is removed when its task ends, and the next device gets a new holder with Docker's files."""
+    platform = _held_backend()
+    lc = Lifecycle(lifecycle.run_id, "gw7", keep_networks=1)
+    for path in ("/etc/hosts", "/etc/resolv.conf", "/etc/hostname"):
+        env = lc.boot((platform,))
+        holder, device = env.holders[platform].container, env.containers[platform]
+        assert device.exec_run(["sh", "-c", f"echo 10.9.9.9 transfer >> {path}"]).exit_code == 0
+        env.close()
+        assert holder.name not in leftovers(lc.run_id) and env.network.name in leftovers(lc.run_id)
+        again = lc.boot((platform,))
+        assert again.network.name == env.network.name and again.holders[platform].container.id != holder.id
+        assert b"10.9.9.9" not in again.containers[platform].exec_run(["cat", path]).output
+        again.close()  # untouched: kept, and the next round's device joins it
+    lc.close()
+    assert leftovers(lc.run_id) == []
+
+
 def test_the_real_ubuntu_device_on_loopback(ubuntu_env):
     for c in ubuntu_env.containers.values():
         assert all(b["HostIp"] == "127.0.0.1" for b in bindings(c))

@@ -13,6 +13,7 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
 from jarvis_pytest.errors import InfrastructureError
@@ -169,6 +170,22 @@ HOLDER_ROLE = "holder"
 HOLDER_MEMORY = "16m"
 
 
+NETWORK_FILES = ("HostsPath", "ResolvConfPath", "HostnamePath")  # Docker's files of a container's namespace
+
+
+def network_files(container: Any) -> dict[str, bytes] | None:
+    """The /etc/hosts, /etc/resolv.conf and /etc/hostname Docker keeps for `container`'s network namespace (a
+    device that joins it gets the same files, writable by its root), read where the engine keeps them; None
+    where this process cannot read them (an engine on another machine, no permission)."""
+    files = {}
+    for key in NETWORK_FILES:
+        try:
+            files[key] = Path(container.attrs[key]).read_bytes()
+        except (OSError, KeyError, TypeError):
+            return None
+    return files
+
+
 @dataclass
 class PortHolder:
     """A container that only holds a network namespace on a task network: a device's address there and its
@@ -180,6 +197,13 @@ class PortHolder:
 
     container: Any
     url: str                 # http://127.0.0.1:<published port> of the control port
+    files: dict[str, bytes] | None = None  # `network_files` as Docker made them (None: they cannot be read here)
+
+    def untouched(self) -> bool:
+        """Whether its /etc/hosts, /etc/resolv.conf and /etc/hostname are as Docker made them, so a next device
+        may join it: a device's root can write them, and a changed /etc/hosts would send a later task's device
+        elsewhere. False where they cannot be read here: such a holder serves one device only."""
+        return self.files is not None and network_files(self.container) == self.files
 
     @property
     def network_mode(self) -> str:
@@ -196,7 +220,8 @@ def start_holder(backend: "Backend", request: "BootRequest") -> PortHolder:
     request.started.append(c)
     if not request.egress:
         egress.cut_default_route(c)
-    return PortHolder(c, host_url(c, backend.port))
+    url = host_url(c, backend.port)  # reloads the container: its attributes name its network files
+    return PortHolder(c, url, network_files(c))
 
 
 @dataclass

@@ -76,8 +76,9 @@ class TaskEnvironment:
         lines = [f"network {self.network.name}"]
         for role, c in sorted(self.containers.items()):
             lines.append(f"  {role}: {self.urls.get(role, '')}  (docker exec -it {c.name} bash)")
-        lines.append(f"  remove with: jarvis cleanup --run {self.run_id}  (or docker rm -f "
-                     f"{' '.join(c.name for c in self.containers.values())} && docker network rm {self.network.name})")
+        names = [c.name for c in self.containers.values()] + [h.container.name for h in self.holders.values()]
+        lines.append(f"  remove with: jarvis cleanup --run {self.run_id}  (or docker rm -f {' '.join(names)} && "
+                     f"docker network rm {self.network.name})")
         return "\n".join(lines)
 
     def close(self) -> None:
@@ -145,6 +146,7 @@ class Lifecycle:
         self._prefix = ctr.docker_name("jarvis", run_id, worker, secrets.token_hex(2))
         self._counter = 0
         self._lock = threading.Lock()
+        self._hold = True  # devices of `Backend.holder` backends run in holders (off where they cannot be checked)
         self._ensure_image(self.server.image, pull=not self.server.built_here)
         if not egress:
             egress_policy.ensure_rules()
@@ -290,9 +292,11 @@ class Lifecycle:
                     memory=self.limits.memory or backend.memory, cpus=self.limits.cpus or backend.cpus,
                     ready_timeout=self.limits.ready_timeout or backend.ready_timeout, egress=self.egress,
                     volumes=vols, stop=stop, started=started)
-                if backend.holder:
+                if backend.holder and self._hold:
                     request.holder = holders.get(platform) or ctr.start_holder(backend, request)
                     holders[platform] = request.holder
+                    if request.holder.files is None:  # cannot be checked, so never kept: one holder per device
+                        self._hold = False            # would cost more than none
                     if stop.is_set():
                         raise InfrastructureError("boot cancelled")
                 booted[platform] = backend.boot(request)

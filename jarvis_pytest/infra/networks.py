@@ -15,7 +15,8 @@ leaves them to `jarvis cleanup`: they carry the labels and process id of their w
 
 A kept network also keeps its device holders (`containers.PortHolder`: a namespace with an address and a
 published control port, per platform), which spare each later device the engine's network set-up. A holder is
-handed out again only once no container of the run runs in its namespace.
+kept only while its /etc/hosts, /etc/resolv.conf and /etc/hostname are as Docker made them (a device's root can
+write them), and handed out again only once no container of the run runs in its namespace.
 """
 
 from __future__ import annotations
@@ -158,10 +159,14 @@ class TaskNetworks:
         Returns what could not be removed."""
         holders = dict(holders or {})
         if reuse and self.keep > 0 and not _others_on(network, drive, holders, self.run_id):
+            changed = [h.container for h in holders.values() if not h.untouched()]
+            problems = ctr.remove_all(changed)  # a holder whose files a device changed serves no other device
+            holders = {p: h for p, h in holders.items() if h.container not in changed}
             with self._lock:
                 if not self._closed and len(self._free) < self.keep:
                     self._free.append((network, drive, holders))
-                    return []
+                    return problems
+            return problems + _remove(network, drive, holders)
         return _remove(network, drive, holders)
 
     def close(self) -> list[str]:
