@@ -262,6 +262,14 @@ def test_a_kept_holder_serves_the_next_device_only_when_nothing_runs_in_it(devic
     assert second.containers[platform].id != device.id and lc.networks.created == 1
     assert httpx.get(second.urls[platform], timeout=5).status_code == 200  # the new device answers there
     second.close()
+    # a kept holder that stopped is replaced by a new one; the network and drive are still reused
+    holder.kill()
+    replaced = lc.boot((platform,))
+    assert replaced.network.name == first.network.name and lc.networks.created == 1
+    assert replaced.holders[platform].container.id != holder.id and holder.name not in leftovers(lc.run_id)
+    assert httpx.get(replaced.urls[platform], timeout=5).status_code == 200
+    holder = replaced.holders[platform].container
+    replaced.close()
     # something of the run still in the kept holder's namespace (a device whose removal failed): not reused
     stray = docker.from_env().containers.run("jarvis/transfer", ["sleep", "600"], name=f"{lc.run_id}-in-holder",
                                              network_mode=f"container:{holder.id}", detach=True,

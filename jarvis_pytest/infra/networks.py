@@ -98,11 +98,11 @@ class KeptDrive:
 Holders = dict[str, ctr.PortHolder]  # platform → its kept holder
 
 
-def _others_on(network: Any, drive: KeptDrive | None, holders: Holders, run_id: str) -> list[str]:
-    """The containers on `network` other than its kept `drive` and `holders`, and those of run `run_id` that run
-    in a holder's namespace (a device there is not listed on the network)."""
+def _others_on(network: Any, on_it: list[str], drive: KeptDrive | None, holders: Holders, run_id: str) -> list[str]:
+    """The containers on `network` (`on_it`: `attached(network)`) other than its kept `drive` and `holders`, and
+    those of run `run_id` that run in a holder's namespace (a device there is not listed on the network)."""
     mine = {h.container.name for h in holders.values()} | ({drive.container.name} if drive else set())
-    others = [n for n in attached(network) if n not in mine]
+    others = [n for n in on_it if n not in mine]
     if holders:
         modes = {h.network_mode for h in holders.values()}
         others += sorted(c["Names"][0].lstrip("/") for c in network.client.api.containers(
@@ -141,9 +141,14 @@ class TaskNetworks:
                 network, drive, holders = self._free.pop(fits[0] if fits else 0) if self._free else (None, None, {})
             if network is None:
                 break
-            on_it = _others_on(network, drive, holders, self.run_id)
-            if not on_it:
-                return network, drive, holders
+            names = attached(network)
+            on_it = _others_on(network, names, drive, holders, self.run_id)
+            if not on_it:  # a holder that stopped (killed, out of memory) has left the network: a new one is made
+                stopped = [h.container for h in holders.values() if h.container.name not in names]
+                report = ctr.remove_all(stopped)
+                if report:
+                    print(f"[jarvis] could not remove {'; '.join(report)}", file=sys.stderr, flush=True)
+                return network, drive, {p: h for p, h in holders.items() if h.container not in stopped}
             problems = (drive.remove() if drive else []) + ctr.remove_all([h.container for h in holders.values()])
             print(f"[jarvis] network {network.name} still has {', '.join(on_it)} on it: not reused"
                   + (f" (could not remove {'; '.join(problems)})" if problems else ""), file=sys.stderr, flush=True)
@@ -158,7 +163,7 @@ class TaskNetworks:
         container is on it or in a holder and fewer than `keep` are kept; else remove them and the network.
         Returns what could not be removed."""
         holders = dict(holders or {})
-        if reuse and self.keep > 0 and not _others_on(network, drive, holders, self.run_id):
+        if reuse and self.keep > 0 and not _others_on(network, attached(network), drive, holders, self.run_id):
             changed = [h.container for h in holders.values() if not h.untouched()]
             problems = ctr.remove_all(changed)  # a holder whose files a device changed serves no other device
             holders = {p: h for p, h in holders.items() if h.container not in changed}
