@@ -98,12 +98,14 @@ class KeptDrive:
 Holders = dict[str, ctr.PortHolder]  # platform → its kept holder
 
 
-def _others_on(network: Any, on_it: list[str], drive: KeptDrive | None, holders: Holders, run_id: str) -> list[str]:
-    """The containers on `network` (`on_it`: `attached(network)`) other than its kept `drive` and `holders`, and
-    those of run `run_id` that run in a holder's namespace (a device there is not listed on the network)."""
+def _others_on(network: Any, on_it: list[str], drive: KeptDrive | None, holders: Holders,
+               run_id: str | None) -> list[str]:
+    """The containers on `network` (`on_it`: `attached(network)`) other than its kept `drive` and `holders`, and,
+    given `run_id`, those of that run that run in a holder's namespace (a device there is not listed on the
+    network; one more request to the engine)."""
     mine = {h.container.name for h in holders.values()} | ({drive.container.name} if drive else set())
     others = [n for n in on_it if n not in mine]
-    if holders:
+    if holders and run_id is not None:
         modes = {h.network_mode for h in holders.values()}
         others += sorted(c["Names"][0].lstrip("/") for c in network.client.api.containers(
             all=True, filters={"label": f"{ctr.LABEL_RUN}={run_id}"})
@@ -160,10 +162,10 @@ class TaskNetworks:
     def give_back(self, network: Any, reuse: bool = True, drive: KeptDrive | None = None,
                   holders: Holders | None = None) -> list[str]:
         """Keep `network`, with `drive` and `holders` still on it, for a later task when `reuse`, no other
-        container is on it or in a holder and fewer than `keep` are kept; else remove them and the network.
-        Returns what could not be removed."""
+        container is on it and fewer than `keep` are kept; else remove them and the network. Returns what could not
+        be removed. What still runs in a holder (a device whose removal failed) is looked for once, by `take`."""
         holders = dict(holders or {})
-        if reuse and self.keep > 0 and not _others_on(network, attached(network), drive, holders, self.run_id):
+        if reuse and self.keep > 0 and not _others_on(network, attached(network), drive, holders, None):
             changed = [h.container for h in holders.values() if not h.untouched()]
             problems = ctr.remove_all(changed)  # a holder whose files a device changed serves no other device
             holders = {p: h for p, h in holders.items() if h.container not in changed}
