@@ -138,14 +138,14 @@ def test_killed_run_is_interrupted_and_the_next_run_removes_its_leftovers(device
     time.sleep(1)
     assert ResultsStore(tmp_path).run(run_dir.name)["state"] == "interrupted"
     # the next run's start-up removes what the dead run left (its processes are gone), then resumes it
-    before = _finished(run_dir)
     proc = subprocess.run(bench_cmd(run_dir, "-p", "no:xdist", "--agent", "oracle", "--resume", str(run_dir),
                                     "-k", "thunar-rename_file"),
                           cwd=REPO, capture_output=True, text=True, timeout=600)
     out = proc.stdout + proc.stderr
     containers, networks = leftovers(resource_id(run_dir))
     assert not containers and not networks, out[-3000:]
-    assert "removed what killed runs left" in out or before == 0, out[-3000:]
+    # which start-up swept them is not asserted: a session another test starts meanwhile may get there first (the
+    # sweep itself, and that it spares live runs, is test_cleanup_after_the_run_is_killed's)
     meta = json.loads((run_dir / "run.json").read_text())
     assert len(meta["sessions"]) == 2 and meta["sessions"][1]["resumed"] and meta["state"] == "finished"
 

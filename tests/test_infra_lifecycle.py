@@ -17,7 +17,7 @@ from conftest import standin_backend, within_rules
 
 from jarvis_pytest.devices.backend import Backend, register_backend
 from jarvis_pytest.errors import InfrastructureError
-from jarvis_pytest.infra.cleanup import cleanup
+from jarvis_pytest.infra.cleanup import cleanup, orphan_sweep
 from jarvis_pytest.infra.containers import LABEL_HOST, LABEL_PID, LABEL_PLATFORM, LABEL_ROLE, LABEL_RUN, LABEL_WORKER
 from jarvis_pytest.infra.lifecycle import Lifecycle, Limits
 from jarvis_pytest.infra.networks import attached
@@ -415,6 +415,17 @@ def test_the_pool_cleans_up_at_interpreter_exit(standin_platforms):
         cleanup(run_id)
 
 
+def test_one_orphan_sweep_of_an_engine_at_a_time():
+    """Sessions starting together sweep orphans one after another; a sweep that cannot get its turn says why."""
+    with orphan_sweep(), ThreadPoolExecutor(1) as other:  # a thread of its own is another holder, as a process is
+        with pytest.raises(InfrastructureError, match=r"another orphan sweep of this engine held its lock"):
+            other.submit(lambda: orphan_sweep(timeout=0.3).__enter__()).result()
+        with orphan_sweep():  # the holder itself may sweep (cleanup() inside a held sweep)
+            pass
+    with orphan_sweep(timeout=5):  # released: the next sweep gets its turn
+        pass
+
+
 BOOT_AND_HANG = """
 import sys, time
 from jarvis_pytest.infra.lifecycle import Lifecycle
@@ -430,14 +441,15 @@ def test_cleanup_after_the_run_is_killed(standin_platforms, device_images):
     live = None
     try:
         assert proc.stdout.readline().strip() == "booted"
-        os.kill(proc.pid, signal.SIGKILL)
-        proc.wait(10)
-        assert len(leftovers(run_id)) == 4  # ubuntu, its holder, transfer, network: a kill -9 leaves them
-        killed_net = [n.name for n in docker.from_env().networks.list(filters={"label": f"{LABEL_RUN}={run_id}"})]
-        assert [within_rules(n) for n in killed_net] == [1]  # the network's own accept rule stays with it
-        # another worker of the same run is still alive: cleaning orphans must spare its environment
-        live = Lifecycle(run_id, "gw1").boot(standin_platforms[:1])
-        assert cleanup(run_id, orphans_only=True) == {"containers": 3, "networks": 1, "volumes": 0}
+        with orphan_sweep():  # a pytest session another test starts now would otherwise sweep these orphans first
+            os.kill(proc.pid, signal.SIGKILL)
+            proc.wait(10)
+            assert len(leftovers(run_id)) == 4  # ubuntu, its holder, transfer, network: a kill -9 leaves them
+            killed_net = [n.name for n in docker.from_env().networks.list(filters={"label": f"{LABEL_RUN}={run_id}"})]
+            assert [within_rules(n) for n in killed_net] == [1]  # the network's own accept rule stays with it
+            # another worker of the same run is still alive: cleaning orphans must spare its environment
+            live = Lifecycle(run_id, "gw1").boot(standin_platforms[:1])
+            assert cleanup(run_id, orphans_only=True) == {"containers": 3, "networks": 1, "volumes": 0}
         assert leftovers(run_id) == sorted([*(c.name for c in live.containers.values()), live.network.name])
         assert [within_rules(n) for n in [*killed_net, live.network.name]] == [0, 1]  # the rule went first
         assert live.transfer.list("/") == (["data"], [])

@@ -8,9 +8,13 @@ orphans (they may belong to a live run); remove them with `--run` or `--all`.
 
 from __future__ import annotations
 
+import hashlib
 import socket
+import tempfile
 import time
-from typing import Any
+from contextlib import contextmanager, nullcontext
+from pathlib import Path
+from typing import Any, Iterator
 
 from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.infra.containers import LABEL_HOST, LABEL_PID, LABEL_RUN
@@ -24,6 +28,28 @@ def is_orphan(labels: dict[str, str]) -> bool:
     if labels.get(LABEL_HOST) != socket.gethostname() or not pid.isdigit():
         return False
     return not process_alive(int(pid))
+
+
+_SWEEP_LOCKS: dict[str, Any] = {}
+
+
+@contextmanager
+def orphan_sweep(host: str | None = None, timeout: float = 300) -> Iterator[None]:
+    """Held by one orphan sweep of engine `host` on this machine at a time (reentrant in a thread): runs that
+    start together count each leftover once, and a caller holding it keeps other sweeps off what it checks."""
+    from filelock import FileLock, Timeout
+
+    key = hashlib.sha256(str(host).encode()).hexdigest()[:12]
+    lock = _SWEEP_LOCKS.setdefault(key, FileLock(str(Path(tempfile.gettempdir()) / f"jarvis-orphans-{key}.lock")))
+    try:
+        lock.acquire(timeout=timeout)
+    except Timeout:
+        raise InfrastructureError(f"another orphan sweep of this engine held its lock ({lock.lock_file}) for "
+                                  f"{timeout:.0f} s; is a `jarvis cleanup` hanging?") from None
+    try:
+        yield
+    finally:
+        lock.release()
 
 
 def _remove(resource: Any, kind: str, problems: list[str]) -> bool:
@@ -76,12 +102,13 @@ def cleanup(run_id: str | None = None, everything: bool = False, orphans_only: b
         "volumes": lambda: [(docker.volumes.prepare_model(v), v.get("Labels")) for v in
                             (api.volumes(filters={"label": label}) or {}).get("Volumes") or []],
     }
-    for kind, listing in listings.items():  # containers first: a network in use cannot go
-        for resource, labels in listing():
-            if orphans_only and not is_orphan(labels or {}):
-                continue
-            if _remove(resource, kind, problems):
-                counts[kind] += 1
+    with orphan_sweep(host) if orphans_only else nullcontext():
+        for kind, listing in listings.items():  # containers first: a network in use cannot go
+            for resource, labels in listing():
+                if orphans_only and not is_orphan(labels or {}):
+                    continue
+                if _remove(resource, kind, problems):
+                    counts[kind] += 1
     if problems:
         raise InfrastructureError("could not remove " + "; ".join(problems) + " (is another run still using them? "
                                   "`docker ps -a --filter label=org.jarvis.run` shows what is left)")
