@@ -119,6 +119,12 @@ def drive_files(container) -> list[str]:
     return out.decode().splitlines()
 
 
+def compiled_templates(container) -> list[str]:
+    """The drive's cache of compiled page templates: each entry's name and modification time (`drive.py`)."""
+    out = container.exec_run(["find", "/var/cache/jarvis-drive/templates", "-type", "f", "-printf", "%f %T@\\n"])
+    return sorted(out.output.decode().split("\n")[:-1]) if out.exit_code == 0 else []
+
+
 def drive_generation(container) -> int:
     """How many servers the drive's PID 1 has started (`drive.py`)."""
     return int(container.exec_run(["cat", "/run/jarvis-drive"]).output.split()[0])
@@ -139,6 +145,8 @@ def test_a_kept_drive_is_renewed_wiped_and_checked_empty(standin_platforms, life
     assert drive.exec_run(["sh", "-c", "mkdir -p /root/.config/copyparty && touch /root/.config/copyparty/x.db "
                            "/var/lib/copyparty/up2k.snap"]).exit_code == 0
     url = fresh.urls["transfer"]
+    compiled = compiled_templates(drive)
+    assert len(compiled) >= 10, compiled  # copyparty's page templates, compiled by the first server
     fresh.close()
     renewed = lc.boot(standin_platforms[:1])
     assert renewed.containers["transfer"].id == drive.id and renewed.urls["transfer"] == url
@@ -151,6 +159,10 @@ def test_a_kept_drive_is_renewed_wiped_and_checked_empty(standin_platforms, life
     probe = device.exec_run(["curl", "-s", "-o", "/dev/null", "-w", "%{http_code}", "-H", "PW: agentPassword",
                              "http://transfer:5244/data/?ls"])
     assert probe.output == b"200"
+    # the renewed server loaded the compiled templates (none written again) and renders pages from them
+    assert compiled_templates(drive) == compiled
+    page = device.exec_run(["curl", "-s", "-A", "Mozilla/5.0", "http://transfer:5244/"]).output.decode()
+    assert 'name="cppwd"' in page, page[:300]  # the login page, from the cached code of a template
     renewed.transfer.upload("/data/mine.txt", b"x")
     renewed.close()
 
