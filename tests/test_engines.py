@@ -32,6 +32,15 @@ TASKS = ["-k", "(mousepad-write_note or thunar-rename_file or terminal-count_mat
          "--instances", "1"]
 
 
+def test_paramiko_is_imported_only_for_an_ssh_engine():
+    """`import docker` would import paramiko (0.19 CPU-s a process); the harness has it imported on first use."""
+    code = ("import sys, jarvis_pytest.infra.engine, docker; import paramiko; before = type(paramiko).__name__; "
+            "paramiko.SSHClient; print(before, type(sys.modules['paramiko']).__name__, 'paramiko.transport' in "
+            "sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert out.stdout.split() == ["_OnFirstUse", "module", "True"], out.stderr[-2000:]
+
+
 @pytest.mark.parametrize("url", ["", "docker.sock", "/var/run/docker.sock", "tcp://", "http//x"])
 def test_a_bad_engine_url_is_one_clear_error(url):
     with pytest.raises(ConfigError) as err:
