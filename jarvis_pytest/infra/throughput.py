@@ -50,26 +50,51 @@ def planner_reply(req: RecordedRequest, latency: float) -> Reply:
     return Reply(text=steps[min(done, len(steps) - 1)], delay=latency)
 
 
-def _memory_mb(run_id: str, docker: Any) -> float:
-    """Memory now: the run's containers (cgroup usage) and the pytest processes (RSS)."""
-    total = 0
-    for c in docker.api.containers(filters={"label": f"org.jarvis.run={run_id}"}):
+class RunMemory:
+    """The memory of one run now: its containers (cgroup usage) and its pytest processes (RSS).
+
+    Sampled every second, it costs the machine it measures little: a process is told apart by its command line
+    once (the run's pytest processes live as long as the run; a pid reused within it would be missed), and Docker
+    is asked for the run's containers only when a new container shows in the cgroup hierarchy."""
+
+    def __init__(self, run_id: str, docker: Any):
+        self.run_id, self.docker = run_id, docker
+        self.ours: dict[str, bool] = {}    # pid → a pytest process of the run
+        self.seen: set[str] = set()        # container ids seen in the cgroup hierarchy
+        self.containers: set[str] = set()  # of which the run's
+
+    def _our_process(self, pid: str) -> bool:
+        cmd = Path(f"/proc/{pid}/cmdline").read_bytes()
+        return b"pytest" in cmd and self.run_id.encode() in cmd or b"xdist" in cmd and b"execnet" in cmd
+
+    def mb(self) -> float:
+        total = 0
         try:
-            total += int((CGROUP_MEMORY / c["Id"] / "memory.usage_in_bytes").read_text())
-        except (OSError, ValueError):
-            pass
-    for pid in os.listdir("/proc"):
-        if not pid.isdigit():
-            continue
-        try:
-            cmd = Path(f"/proc/{pid}/cmdline").read_bytes()
-            if b"pytest" in cmd and run_id.encode() in cmd or b"xdist" in cmd and b"execnet" in cmd:
-                for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-                    if line.startswith("VmRSS:"):
-                        total += int(line.split()[1]) * 1024
+            ids = {name for name in os.listdir(CGROUP_MEMORY) if len(name) == 64}
         except OSError:
-            pass
-    return total / 2**20
+            ids = None
+        if ids is None or ids - self.seen:
+            self.containers = {c["Id"] for c in self.docker.api.containers(filters={"label": f"org.jarvis.run="
+                                                                                            f"{self.run_id}"})}
+            self.seen |= ids or set()
+        for cid in self.containers if ids is None else ids & self.containers:
+            try:
+                total += int((CGROUP_MEMORY / cid / "memory.usage_in_bytes").read_text())
+            except (OSError, ValueError):
+                pass
+        for pid in os.listdir("/proc"):
+            if not pid.isdigit():
+                continue
+            try:
+                if pid not in self.ours:
+                    self.ours[pid] = self._our_process(pid)
+                if self.ours[pid]:
+                    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+                        if line.startswith("VmRSS:"):
+                            total += int(line.split()[1]) * 1024
+            except OSError:
+                pass
+        return total / 2**20
 
 
 def _busy_cpu_seconds() -> float:
@@ -162,10 +187,12 @@ def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path) -> dict[
     peak = 0.0
     stop = threading.Event()
 
+    memory = RunMemory(resource_id(run_dir), docker)
+
     def sample() -> None:
         nonlocal peak
         while not stop.wait(1.0):
-            peak = max(peak, _memory_mb(resource_id(run_dir), docker))
+            peak = max(peak, memory.mb())
 
     with fake, tempfile.TemporaryDirectory(prefix="jarvis-throughput-") as scratch:
         # -p no:hypothesispytest: the project's own tests use Hypothesis, so the development venv has it, and its
