@@ -9,6 +9,10 @@ WORKERS ?= 2
 MARKERS ?=
 PYTEST_ARGS ?=
 STAMP := $(VENV)/.installed
+# Python keeps byte-code caches (git-ignored __pycache__) for what make runs, even where the environment says not
+# to: without them every pytest process (each xdist worker, each run a test starts) compiles and
+# assertion-rewrites the harness again, about 0.7 CPU-s a process. pytest reads caches written earlier either way.
+unexport PYTHONDONTWRITEBYTECODE
 
 .PHONY: setup engine images host-packages test test-android bench clean-devices
 

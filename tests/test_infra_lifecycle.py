@@ -10,6 +10,7 @@ import sys
 import time
 import uuid
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import docker
 import pytest
@@ -18,7 +19,9 @@ from conftest import standin_backend, within_rules
 from jarvis_pytest.devices.backend import Backend, register_backend
 from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.infra.cleanup import cleanup, orphan_sweep
-from jarvis_pytest.infra.containers import LABEL_HOST, LABEL_PID, LABEL_PLATFORM, LABEL_ROLE, LABEL_RUN, LABEL_WORKER
+from jarvis_pytest.infra.containers import (LABEL_HOST, LABEL_PID, LABEL_PLATFORM, LABEL_ROLE, LABEL_RUN,
+                                            LABEL_WORKER, BootPriority)
+from jarvis_pytest.infra.containers import labels as ctr_labels
 from jarvis_pytest.infra.lifecycle import Lifecycle, Limits
 from jarvis_pytest.infra.networks import attached
 from jarvis_pytest.infra.pool import Pool
@@ -380,6 +383,48 @@ def test_pool_prewarm_is_faster_than_a_cold_boot_and_close_removes_all(lifecycle
     assert leftovers(lifecycle.run_id) == []
     pool.prewarm(("ubuntu",))  # a closed pool boots nothing more
     assert not pool.wait_prewarmed(("ubuntu",), timeout=0) and leftovers(lifecycle.run_id) == []
+
+
+def cpu_shares(container) -> tuple[int, int]:
+    """A container's CPU weight as Docker has it (0: its default) and as the kernel applies it (its cgroup)."""
+    container.reload()
+    cgroup = Path(f"/sys/fs/cgroup/cpu/docker/{container.id}/cpu.shares")
+    return container.attrs["HostConfig"]["CpuShares"], int(cgroup.read_text())
+
+
+def test_a_prewarm_runs_at_a_low_cpu_weight_until_a_task_asks_for_it(lifecycle, standin_platforms):
+    platforms = standin_platforms[:1]
+    with Pool(lifecycle) as pool:
+        now = pool.acquire(platforms)  # nothing pre-warmed: booted for a waiting task, at Docker's default
+        assert {role: cpu_shares(c) for role, c in now.containers.items()} == {platforms[0]: (0, 1024),
+                                                                               "transfer": (0, 1024)}
+        pool.prewarm(platforms)  # speculative while the task on `now` runs: takes what running devices leave
+        assert pool.wait_prewarmed(platforms, timeout=60)
+        ahead = pool._ready[platforms][0].result()
+        assert {role: cpu_shares(c) for role, c in ahead.containers.items()} == {platforms[0]: (128, 128),
+                                                                                 "transfer": (128, 128)}
+        now.close()
+        taken = pool.acquire(platforms)  # a task waits for it: the default weight from now on
+        assert taken is ahead
+        assert {role: cpu_shares(c) for role, c in taken.containers.items()} == {platforms[0]: (1024, 1024),
+                                                                                 "transfer": (1024, 1024)}
+        taken.close()
+
+
+def test_a_container_made_after_its_boot_became_urgent_gets_the_default_weight(lifecycle, device_images):
+    priority = BootPriority(low=True)
+    shares = priority.shares()
+    container = docker.from_env().containers.create(device_images["transfer"], ["true"], cpu_shares=shares,
+                                                    labels=ctr_labels(lifecycle.run_id, "gw0", "device"))
+    try:
+        priority.urgent()  # between the container's creation and its registration
+        priority.made(container, shares)
+        container.start()
+        container.reload()
+        assert shares == 128 and container.attrs["HostConfig"]["CpuShares"] == 1024
+        assert BootPriority(low=True).shares() == 128 and BootPriority().shares() is None
+    finally:
+        container.remove(force=True)
 
 
 def test_a_failed_prewarm_is_retried_once_on_acquire(lifecycle, standin_platforms):

@@ -43,12 +43,60 @@ def docker_name(*parts: str) -> str:
     return re.sub(r"[^a-zA-Z0-9_.-]", "-", "-".join(p for p in parts if p)).strip("-.") or "jarvis"
 
 
+class BootPriority:
+    """The CPU weight of the containers one boot makes. A pre-warm is speculative: its containers start at a low
+    weight (cgroup `cpu.shares`), so that when the cores are full the devices tasks act on, and the boots workers
+    wait for, come first, and it takes only what they leave. `urgent()` (a task now waits for the boot) raises
+    them to Docker's default at once; containers the boot makes after that start at the default."""
+
+    LOW, DEFAULT = 128, 1024
+
+    def __init__(self, low: bool = False):
+        self._low = low
+        self._made: list[Any] = []
+        self._lock = threading.Lock()
+
+    def shares(self) -> int | None:
+        """The `cpu_shares` to create a container with now (None: Docker's default)."""
+        with self._lock:
+            return self.LOW if self._low else None
+
+    def made(self, container: Any, shares: int | None) -> None:
+        """`container` was created with `shares`; raised at once if the boot became urgent meanwhile."""
+        with self._lock:
+            if self._low:
+                self._made.append(container)
+                return
+        if shares is not None:
+            _set_shares(container, self.DEFAULT)
+
+    def urgent(self) -> None:
+        """A task waits for this boot: its containers get the default weight, now and from now on."""
+        with self._lock:
+            self._low, made, self._made = False, self._made, []
+        for container in made:
+            _set_shares(container, self.DEFAULT)
+
+
+def _set_shares(container: Any, shares: int) -> None:
+    import docker.errors
+
+    try:
+        container.update(cpu_shares=shares)
+    except docker.errors.NotFound:
+        pass  # removed (a failed or cancelled boot)
+
+
 def start_container(docker: Any, image: str, name: str, *, network: Any, labels: dict[str, str], port: int | None,
                     aliases: tuple[str, ...] = (), memory: str | None = None, cpus: float | None = None,
-                    options: dict[str, Any] | None = None) -> Any:
+                    options: dict[str, Any] | None = None, priority: BootPriority | None = None) -> Any:
     """Create and start a detached container on `network` with `port` published on a free 127.0.0.1 port
-    (`network` None: no network or port of its own; `options` then say whose namespace it joins)."""
+    (`network` None: no network or port of its own; `options` then say whose namespace it joins), at the CPU
+    weight of `priority` (default: Docker's)."""
     kwargs: dict[str, Any] = dict(detach=True, name=name, labels=labels)
+    shares = priority.shares() if priority is not None else None
+    if shares is not None:
+        kwargs["cpu_shares"] = shares
     if network is not None:
         kwargs.update(
             network=network.name,
@@ -64,6 +112,8 @@ def start_container(docker: Any, image: str, name: str, *, network: Any, labels:
     except Exception as exc:
         raise InfrastructureError(f"cannot create container {name} from image {image}: {exc} "
                                   "(build device images with `jarvis images build`)") from exc
+    if priority is not None:
+        priority.made(container, shares)
     try:
         container.start()
     except Exception as exc:
@@ -240,6 +290,7 @@ class BootRequest:
     stop: threading.Event = field(default_factory=threading.Event)    # set when the task's boot is abandoned
     started: list[Any] = field(default_factory=list)  # containers made so far: removed if the boot fails
     holder: PortHolder | None = None # the namespace a device of a `Backend.holder` backend joins
+    priority: BootPriority | None = None  # the CPU weight of the containers it makes (a pre-warm's starts low)
 
 
 @dataclass
@@ -264,7 +315,7 @@ def boot_container(backend: "Backend", request: BootRequest) -> BootedDevice:
     c = start_container(request.docker, backend.image_ref, request.name,
                         network=None if holder else request.network, labels=request.labels,
                         port=None if holder else backend.port, memory=request.memory, cpus=request.cpus,
-                        options=options)
+                        options=options, priority=request.priority)
     request.started.append(c)
     booted = BootedDevice(container=c, url="", backend=backend)
     if request.stop.is_set():

@@ -214,8 +214,10 @@ class Lifecycle:
         report_leftovers(kept.remove(), self.run_id)
         return None
 
-    def boot(self, platforms: tuple[str, ...] | list[str]) -> TaskEnvironment:
-        """A network with a transfer drive and one fresh, ready device per platform (booted in parallel)."""
+    def boot(self, platforms: tuple[str, ...] | list[str],
+             priority: ctr.BootPriority | None = None) -> TaskEnvironment:
+        """A network with a transfer drive and one fresh, ready device per platform (booted in parallel), the
+        containers it makes at the CPU weight of `priority` (default: Docker's)."""
         platforms = tuple(dict.fromkeys(platforms))
         if not platforms or TRANSFER_ROLE in platforms:
             raise InfrastructureError(f"cannot boot platforms {list(platforms)}: give at least one device platform "
@@ -266,7 +268,7 @@ class Lifecycle:
                 c = ctr.start_container(self.docker, self.server.image, f"{base}-transfer", network=network,
                                         labels=ctr.labels(self.run_id, self.worker, "transfer"),
                                         port=self.server.port, aliases=(TRANSFER_ALIAS,),
-                                        memory=self.limits.transfer_memory, options=options)
+                                        memory=self.limits.transfer_memory, options=options, priority=priority)
                 started.append(c)
                 if stop.is_set():
                     raise InfrastructureError("boot cancelled")
@@ -291,7 +293,7 @@ class Lifecycle:
                     labels=ctr.labels(self.run_id, self.worker, "device", platform),
                     memory=self.limits.memory or backend.memory, cpus=self.limits.cpus or backend.cpus,
                     ready_timeout=self.limits.ready_timeout or backend.ready_timeout, egress=self.egress,
-                    volumes=vols, stop=stop, started=started)
+                    volumes=vols, stop=stop, started=started, priority=priority)
                 if backend.holder and self._hold:
                     request.holder = holders.get(platform) or ctr.start_holder(backend, request)
                     holders[platform] = request.holder

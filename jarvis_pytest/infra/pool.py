@@ -8,6 +8,7 @@ import threading
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import wait as wait_futures
 
+from jarvis_pytest.infra.containers import BootPriority
 from jarvis_pytest.infra.lifecycle import Lifecycle, TaskEnvironment
 
 
@@ -23,13 +24,13 @@ class Pool:
     synchronously otherwise; a pre-warmed boot that failed is retried once, synchronously, so its error is the
     one raised. Handed-out environments are the caller's to close. `close` (also run at interpreter exit)
     removes every environment not handed out and the networks the lifecycle kept. Thread-based: one background
-    boot at a time.
+    boot at a time. A pre-warm runs at a low CPU weight (`BootPriority`) until `acquire` asks for it.
     """
 
     def __init__(self, lifecycle: Lifecycle, enabled: bool = True):
         self.lifecycle = lifecycle
         self.enabled = enabled
-        self._ready: dict[tuple[str, ...], Future] = {}
+        self._ready: dict[tuple[str, ...], tuple[Future, BootPriority]] = {}
         self._lock = threading.Lock()
         self._closed = False
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="prewarm")
@@ -46,20 +47,22 @@ class Pool:
         key = _key(platforms)
         with self._lock:
             if self.enabled and not self._closed and key not in self._ready:
-                self._ready[key] = self._executor.submit(self.lifecycle.boot, key)
+                priority = BootPriority(low=True)
+                self._ready[key] = (self._executor.submit(self.lifecycle.boot, key, priority), priority)
 
     def wait_prewarmed(self, platforms: tuple[str, ...] | list[str], timeout: float | None = None) -> bool:
         """Wait until the pre-warm of `platforms` finished (booted or failed); False if none or still booting."""
         with self._lock:
-            future = self._ready.get(_key(platforms))
+            future, _ = self._ready.get(_key(platforms), (None, None))
         return future is not None and bool(wait_futures([future], timeout).done)
 
     def acquire(self, platforms: tuple[str, ...] | list[str]) -> TaskEnvironment:
         """A fresh, ready environment for `platforms`: the pre-warmed one, else booted now."""
         key = _key(platforms)
         with self._lock:
-            future = self._ready.pop(key, None)
+            future, priority = self._ready.pop(key, (None, None))
         if future is not None:
+            priority.urgent()  # what the task waits for (or acts on next) comes first now
             try:
                 return future.result()
             except Exception as exc:
@@ -71,7 +74,7 @@ class Pool:
         """Remove the environments not handed out (waiting for a boot in progress); idempotent."""
         with self._lock:
             self._closed = True
-            futures, self._ready = list(self._ready.values()), {}
+            futures, self._ready = [f for f, _ in self._ready.values()], {}
         for f in futures:
             try:
                 f.result().close()
