@@ -401,8 +401,8 @@ def test_a_prewarm_runs_at_a_low_cpu_weight_until_a_task_asks_for_it(lifecycle, 
         pool.prewarm(platforms)  # speculative while the task on `now` runs: takes what running devices leave
         assert pool.wait_prewarmed(platforms, timeout=60)
         ahead = pool._ready[platforms][0].result()
-        assert {role: cpu_shares(c) for role, c in ahead.containers.items()} == {platforms[0]: (128, 128),
-                                                                                 "transfer": (128, 128)}
+        low = (BootPriority.LOW, BootPriority.LOW)
+        assert {role: cpu_shares(c) for role, c in ahead.containers.items()} == {platforms[0]: low, "transfer": low}
         now.close()
         taken = pool.acquire(platforms)  # a task waits for it: the default weight from now on
         assert taken is ahead
@@ -421,8 +421,8 @@ def test_a_container_made_after_its_boot_became_urgent_gets_the_default_weight(l
         priority.made(container, shares)
         container.start()
         container.reload()
-        assert shares == 128 and container.attrs["HostConfig"]["CpuShares"] == 1024
-        assert BootPriority(low=True).shares() == 128 and BootPriority().shares() is None
+        assert shares == BootPriority.LOW < 1024 and container.attrs["HostConfig"]["CpuShares"] == 1024
+        assert BootPriority().shares() is None
     finally:
         container.remove(force=True)
 
