@@ -39,5 +39,6 @@ def load_on_first_use(name: str) -> None:
 
 
 def install() -> None:
+    """Register a stand-in for each module of `LAZY` (run by `jarvis_pytest.infra` before docker is imported)."""
     for name in LAZY:
         load_on_first_use(name)
