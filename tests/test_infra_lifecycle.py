@@ -395,9 +395,9 @@ def cpu_shares(container) -> tuple[int, int]:
 def test_a_prewarm_runs_at_a_low_cpu_weight_until_a_task_asks_for_it(lifecycle, standin_platforms):
     platforms = standin_platforms[:1]
     with Pool(lifecycle) as pool:
-        now = pool.acquire(platforms)  # nothing pre-warmed: booted for a waiting task, at Docker's default
-        assert {role: cpu_shares(c) for role, c in now.containers.items()} == {platforms[0]: (0, 1024),
-                                                                               "transfer": (0, 1024)}
+        now = pool.acquire(platforms)  # nothing pre-warmed: booted for a waiting task, then at Docker's default
+        assert {role: cpu_shares(c) for role, c in now.containers.items()} == {platforms[0]: (1024, 1024),
+                                                                               "transfer": (1024, 1024)}
         pool.prewarm(platforms)  # speculative while the task on `now` runs: takes what running devices leave
         assert pool.wait_prewarmed(platforms, timeout=60)
         ahead = pool._ready[platforms][0].result()
@@ -411,20 +411,47 @@ def test_a_prewarm_runs_at_a_low_cpu_weight_until_a_task_asks_for_it(lifecycle, 
         taken.close()
 
 
-def test_a_container_made_after_its_boot_became_urgent_gets_the_default_weight(lifecycle, device_images):
+def test_a_boot_a_task_waits_for_runs_above_the_default_weight_until_it_is_done(lifecycle, device_images):
+    made = []
+
+    def container(shares):
+        made.append(docker.from_env().containers.create(device_images["transfer"], ["sleep", "600"],
+                                                        cpu_shares=shares,
+                                                        labels=ctr_labels(lifecycle.run_id, "gw0", "device")))
+        return made[-1]
+
     priority = BootPriority(low=True)
-    shares = priority.shares()
-    container = docker.from_env().containers.create(device_images["transfer"], ["true"], cpu_shares=shares,
-                                                    labels=ctr_labels(lifecycle.run_id, "gw0", "device"))
     try:
-        priority.urgent()  # between the container's creation and its registration
-        priority.made(container, shares)
-        container.start()
-        container.reload()
-        assert shares == BootPriority.LOW < 1024 and container.attrs["HostConfig"]["CpuShares"] == 1024
-        assert BootPriority().shares() is None
+        early = container(priority.shares())
+        priority.made(early, BootPriority.LOW)
+        shares = priority.shares()
+        late = container(shares)  # created before the boot became urgent, registered after
+        priority.urgent()
+        weight = priority.shares()
+        priority.made(late, shares)
+        after = container(weight)  # made while a task waits: at the urgent weight from the start
+        priority.made(after, weight)
+        assert weight >= 2 * BootPriority.DEFAULT
+        for c in made:
+            c.start()
+            assert cpu_shares(c) == (weight, weight)
+        priority.settle()  # booted: the default, as any device
+        assert [cpu_shares(c) for c in made] == [(1024, 1024)] * 3
+        assert BootPriority().shares() is None and priority.shares() is None
     finally:
-        container.remove(force=True)
+        for c in made:
+            c.remove(force=True)
+
+
+def test_of_the_boots_tasks_wait_for_the_older_gets_more_of_the_cpu():
+    """FIFO without a queue: the weight doubles with each second a boot has run, so the boot begun first (the one
+    furthest along) is done first, and an urgent boot always outweighs a running task's device (the default)."""
+    boot = BootPriority(low=True)
+    weights = [boot.urgent_weight(now=boot.started + age) for age in (0.0, 0.5, 1.0, 3.0, 6.0, 60.0)]
+    assert weights[0] == 2 * BootPriority.DEFAULT
+    assert weights == sorted(weights) and len(set(weights)) == len(weights)
+    assert weights[2] == 2 * weights[0] and weights[-1] == BootPriority.HIGHEST
+    assert boot.urgent_weight(now=boot.started - 5) == weights[0]  # a clock read before the start: no lower
 
 
 def test_a_failed_prewarm_is_retried_once_on_acquire(lifecycle, standin_platforms):

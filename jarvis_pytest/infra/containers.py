@@ -45,38 +45,61 @@ def docker_name(*parts: str) -> str:
 
 
 class BootPriority:
-    """The CPU weight of the containers one boot makes. A pre-warm is speculative: its containers start at a low
-    weight (cgroup `cpu.shares`), so that when the cores are full the devices tasks act on, and the boots workers
-    wait for, come first, and it takes only what they leave. `urgent()` (a task now waits for the boot) raises
-    them to Docker's default at once; containers the boot makes after that start at the default."""
+    """The CPU weight (cgroup `cpu.shares`) of the containers one pooled boot makes, over the boot's life.
+
+    - A pre-warm is speculative: its containers start at `LOW`, so that when the cores are full the devices tasks
+      act on come first, and it takes only what they leave.
+    - `urgent()`: a task now waits for the boot. Its containers rise above Docker's default (the devices of
+      running tasks), the more the older the boot (`urgent_weight`). Among the boots tasks wait for, the one begun
+      first (the one furthest along) then gets most of the CPU and is done first, then the next; an equal share
+      would keep every waiting worker idle until nearly all are done. It is work-conserving: no boot stops while
+      another runs. Containers the boot makes after that start at the same weight.
+    - `settle()`: the boot is done (or was never waited for): Docker's default from now on, as for any device.
+    """
 
     # Half the default: 128 starved pre-warms on a saturated machine (in one 8-worker run, tasks then waited 67
     # worker-seconds for pre-warms not done, against 1.5 at the default weight); 512 waited 7.5.
-    LOW, DEFAULT = 512, 1024
+    LOW, DEFAULT, HIGHEST = 512, 1024, 262144  # HIGHEST: the kernel's largest cpu.shares
 
     def __init__(self, low: bool = False):
         self._low = low
+        self._urgent: int | None = None  # the weight while a task waits for the boot
         self._made: list[Any] = []
         self._lock = threading.Lock()
+        self.started = time.monotonic()
+
+    def urgent_weight(self, now: float | None = None) -> int:
+        """The weight of this boot were a task to wait for it now: twice the default (above the devices of
+        running tasks), doubled for each second it has been booting, at most HIGHEST."""
+        age = max(0.0, (time.monotonic() if now is None else now) - self.started)
+        return int(min(self.HIGHEST, 2 * self.DEFAULT * 2 ** min(age, 18.0)))
 
     def shares(self) -> int | None:
         """The `cpu_shares` to create a container with now (None: Docker's default)."""
         with self._lock:
-            return self.LOW if self._low else None
+            return self.LOW if self._low else self._urgent
 
     def made(self, container: Any, shares: int | None) -> None:
-        """`container` was created with `shares`; raised at once if the boot became urgent meanwhile."""
+        """`container` was created with `shares`; changed at once if the boot's weight changed meanwhile."""
         with self._lock:
-            if self._low:
+            if self._low or self._urgent is not None:
                 self._made.append(container)
-                return
-        if shares is not None:
-            _set_shares(container, self.DEFAULT)
+            now = self.LOW if self._low else self._urgent
+        if shares != now and not (shares is None and now is None):
+            _set_shares(container, now or self.DEFAULT)
 
     def urgent(self) -> None:
-        """A task waits for this boot: its containers get the default weight, now and from now on."""
+        """A task waits for this boot: its containers get the weight of its age (`urgent_weight`)."""
+        weight = self.urgent_weight()
         with self._lock:
-            self._low, made, self._made = False, self._made, []
+            self._low, self._urgent, made = False, weight, list(self._made)
+        for container in made:
+            _set_shares(container, weight)
+
+    def settle(self) -> None:
+        """The boot is done: its containers get Docker's default weight, now and from now on."""
+        with self._lock:
+            self._low, self._urgent, made, self._made = False, None, self._made, []
         for container in made:
             _set_shares(container, self.DEFAULT)
 

@@ -24,7 +24,8 @@ class Pool:
     synchronously otherwise; a pre-warmed boot that failed is retried once, synchronously, so its error is the
     one raised. Handed-out environments are the caller's to close. `close` (also run at interpreter exit)
     removes every environment not handed out and the networks the lifecycle kept. Thread-based: one background
-    boot at a time. A pre-warm runs at a low CPU weight (`BootPriority`) until `acquire` asks for it.
+    boot at a time. A pre-warm runs at a low CPU weight (`BootPriority`); a task that waits for it raises it above
+    the default, the more the longer it has been booting, and it gets the default once booted.
     """
 
     def __init__(self, lifecycle: Lifecycle, enabled: bool = True):
@@ -62,13 +63,21 @@ class Pool:
         with self._lock:
             future, priority = self._ready.pop(key, (None, None))
         if future is not None:
-            priority.urgent()  # what the task waits for (or acts on next) comes first now
+            if not future.done():
+                priority.urgent()  # the task waits for it: it comes first, before younger boots
             try:
-                return future.result()
+                environment = future.result()
             except Exception as exc:
                 print(f"[jarvis] pre-warmed boot of {list(key)} failed ({exc.__class__.__name__}); booting again",
                       file=sys.stderr, flush=True)
-        return self.lifecycle.boot(key)
+            else:
+                priority.settle()  # booted: Docker's default weight, as any device has
+                return environment
+        priority = BootPriority()
+        priority.urgent()  # the task waits for it from the start
+        environment = self.lifecycle.boot(key, priority)
+        priority.settle()
+        return environment
 
     def close(self) -> None:
         """Remove the environments not handed out (waiting for a boot in progress); idempotent."""
