@@ -85,7 +85,7 @@ class BootPriority:
             if self._low or self._urgent is not None:
                 self._made.append(container)
             now = self.LOW if self._low else self._urgent
-        if shares != now and not (shares is None and now is None):
+        if shares != now:
             _set_shares(container, now or self.DEFAULT)
 
     def urgent(self) -> None:
