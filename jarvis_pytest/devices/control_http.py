@@ -56,10 +56,6 @@ class ControlHandler(BaseHTTPRequestHandler):
     def log_message(self, fmt: str, *args: Any) -> None:  # quiet; errors are answered, not logged
         pass
 
-    def encode(self, data: Any) -> Any:
-        """What `_json` serialises (a subclass turns its models into plain data here)."""
-        return data
-
     def _send(self, status: int, body: bytes, ctype: str) -> None:
         self.send_response(status)
         self.send_header("Content-Type", ctype)
@@ -70,7 +66,7 @@ class ControlHandler(BaseHTTPRequestHandler):
         self.wfile.write(body)
 
     def _json(self, status: int, data: Any) -> None:
-        self._send(status, json.dumps(self.encode(data)).encode(), "application/json")
+        self._send(status, json.dumps(data).encode(), "application/json")
 
     def _body(self) -> bytes:
         try:

@@ -1,19 +1,15 @@
-"""HTTP routing of the Ubuntu control server (the plumbing shared with every platform's server is in
-`devices/control_http.py`). Every bad request gets a 4xx JSON `{"error": ...}`; nothing crashes it."""
+"""HTTP routing of the Ubuntu control server: the JSON shapes of `devices/protocol.py`, validated by hand
+(`devices/validate.py`, as the Windows server does: importing pydantic was half of this server's CPU at every
+boot); the plumbing shared with every platform's server is in `devices/control_http.py`. Every bad request gets
+a 4xx JSON `{"error": ...}`; nothing crashes it."""
 
 from __future__ import annotations
 
 import time
-from typing import Any
 
-from pydantic import BaseModel, ValidationError
-
-from jarvis_pytest.devices import actions as A
+from jarvis_pytest.devices import validate
 from jarvis_pytest.devices.control_http import (ControlHandler, ControlServer, HttpError, Lazy, execute,
                                                 readiness_within, wait_for_window)
-from jarvis_pytest.devices.protocol import (A11yTree, ActionResult, ClipboardText, FocusRequest, Health,
-                                            LaunchRequest, LaunchResponse, OpenRequest, PathInfo, RunRequest,
-                                            ScreenSize, WindowList)
 from jarvis_pytest.devices.ubuntu.server import system
 
 PLATFORM = "ubuntu"  # the platform this server runs on (`--platform`), named in refusals
@@ -46,14 +42,6 @@ def _pyautogui(script: str) -> None:
     run_script(script, kb, position, lambda: (kb.width, kb.height))
 
 
-def _validation_message(exc: ValidationError) -> str:
-    parts = []
-    for err in exc.errors()[:3]:
-        loc = ".".join(str(x) for x in err["loc"])
-        parts.append(f"{loc}: {err['msg']}" if loc else err["msg"])
-    return "invalid request: " + "; ".join(parts)
-
-
 def _desktop_readiness() -> dict[str, bool]:
     """What of the desktop is up (all True once it was seen ready: `DEVICES.ready` latches)."""
     if DEVICES.ready:
@@ -72,14 +60,11 @@ def _desktop_readiness() -> dict[str, bool]:
 class Handler(ControlHandler):
     server_version = "jarvis-control/1"
 
-    def encode(self, data: Any) -> Any:
-        return data.model_dump(mode="json", by_alias=True) if isinstance(data, BaseModel) else data
-
-    def _model(self, cls: type[BaseModel]):
+    def _request(self, name: str) -> dict:
         try:
-            return cls.model_validate_json(self._body() or b"{}")
-        except ValidationError as exc:
-            raise HttpError(400, _validation_message(exc)) from None
+            return validate.request(name, self._body())
+        except validate.Invalid as exc:
+            raise HttpError(400, f"invalid request: {exc}") from None
 
     def _path_arg(self) -> str:
         path = self._query().get("path", "")
@@ -94,11 +79,11 @@ class Handler(ControlHandler):
         device "unready". `?wait=S` holds the answer up to S seconds until the device is ready."""
         details = readiness_within(_desktop_readiness, self._health_wait())
         ready = all(details.values())
-        self._json(200, Health(ok=True, desktop=ready, details={"ready": True} if ready else details))
+        self._json(200, {"ok": True, "desktop": ready, "details": {"ready": True} if ready else details})
 
     def screen_size(self) -> None:
         w, h = DEVICES.screen.size()
-        self._json(200, ScreenSize(width=w, height=h))
+        self._json(200, {"width": w, "height": h})
 
     def screenshot(self) -> None:
         self._send(200, DEVICES.screen.png(), "image/png")
@@ -115,22 +100,21 @@ class Handler(ControlHandler):
         except ValueError:
             raise HttpError(400, "max_nodes and max_depth must be integers ≥ 1 and timeout a number of seconds "
                                  "in (0, 60]") from None
-        self._json(200, A11yTree(**tree(**limits)))
+        self._json(200, tree(**limits))
 
     def action(self) -> None:
         from jarvis_pytest.devices.ubuntu.server.xinput import InputError
 
-        body = self._body()
         try:
-            action = A.parse_action(body)
-        except ValidationError as exc:
-            raise HttpError(400, _validation_message(exc)) from None
+            action = validate.action(self._body())
+        except validate.Invalid as exc:
+            raise HttpError(400, f"invalid request: {exc}") from None
         t0 = time.perf_counter()
         try:
-            execute(action.model_dump(), DEVICES.keyboard, PLATFORM, _pyautogui)
+            execute(action, DEVICES.keyboard, PLATFORM, _pyautogui)
         except (InputError, KeyError) as exc:
             raise HttpError(400, str(exc)) from None
-        self._json(200, ActionResult(ok=True, elapsed_ms=(time.perf_counter() - t0) * 1000))
+        self._json(200, {"ok": True, "error": None, "elapsed_ms": (time.perf_counter() - t0) * 1000})
 
     def put_file(self) -> None:
         path = self._path_arg()
@@ -151,8 +135,8 @@ class Handler(ControlHandler):
         self._send(200, data, "application/octet-stream")
 
     def run(self) -> None:
-        req = self._model(RunRequest)
-        self._json(200, system.run(req.command, req.user, req.timeout))
+        req = self._request("run")
+        self._json(200, system.run(req["command"], req["user"], req["timeout"]))
 
     def _start_and_wait(self, app: str, args: list[str], window_wait: float) -> None:
         """Start a program; with `window_wait`, answer once the desktop shows a new application window or an
@@ -166,47 +150,48 @@ class Handler(ControlHandler):
         except PermissionError:
             raise HttpError(400, f"{app!r} is not an executable") from None
         shown = wait_for_window(DEVICES.screen.app_windows, before, window_wait)
-        self._json(200, LaunchResponse(window=shown))
+        self._json(200, {"ok": True, "window": shown})
 
     def launch(self) -> None:
-        req = self._model(LaunchRequest)
-        self._start_and_wait(req.app, req.args, req.window_wait)
+        req = self._request("launch")
+        self._start_and_wait(req["app"], req["args"], req["window_wait"])
 
     def open(self) -> None:
         """Open a file or folder with its default application (xdg-open), waiting for its window like launch."""
-        req = self._model(OpenRequest)
-        if not req.path.startswith("/"):
+        req = self._request("open")
+        path = req["path"]
+        if not path.startswith("/"):
             raise HttpError(400, "`path` must be an absolute path")
-        if system.path_kind(req.path) is None:
-            raise HttpError(404, f"no file or folder at {req.path}")
-        self._start_and_wait("xdg-open", [req.path], req.window_wait)
+        if system.path_kind(path) is None:
+            raise HttpError(404, f"no file or folder at {path}")
+        self._start_and_wait("xdg-open", [path], req["window_wait"])
 
     def focus(self) -> None:
         """Bring the application window whose title contains `title` to the front (waiting up to `timeout` s for it
         to show); 404 when none does."""
-        req = self._model(FocusRequest)
-        deadline = time.monotonic() + req.timeout
+        req = self._request("focus")
+        deadline = time.monotonic() + req["timeout"]
         while True:
-            found = DEVICES.screen.focus(req.title)
+            found = DEVICES.screen.focus(req["title"])
             if found or time.monotonic() >= deadline:
                 break
             time.sleep(0.1)
         if not found:
-            raise HttpError(404, f"no window whose title contains {req.title!r}")
-        self._json(200, LaunchResponse(window=True))
+            raise HttpError(404, f"no window whose title contains {req['title']!r}")
+        self._json(200, {"ok": True, "window": True})
 
     def exists(self) -> None:
         kind = system.path_kind(self._path_arg())
-        self._json(200, PathInfo(exists=kind is not None, kind=kind))
+        self._json(200, {"exists": kind is not None, "kind": kind})
 
     def windows(self) -> None:
-        self._json(200, WindowList(windows=DEVICES.screen.windows()))
+        self._json(200, {"windows": DEVICES.screen.windows()})
 
     def get_clipboard(self) -> None:
-        self._json(200, ClipboardText(text=system.clipboard_get()))
+        self._json(200, {"text": system.clipboard_get()})
 
     def put_clipboard(self) -> None:
-        system.clipboard_set(self._model(ClipboardText).text)
+        system.clipboard_set(self._request("clipboard")["text"])
         self._json(200, {"ok": True})
 
 

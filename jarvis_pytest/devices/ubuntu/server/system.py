@@ -8,8 +8,6 @@ import subprocess
 import threading
 from pathlib import Path
 
-from jarvis_pytest.devices.protocol import RunResponse
-
 DESKTOP_PROCESSES = ("xfwm4", "xfdesktop", "xfce4-panel")  # the desktop is up when these run ...
 DESKTOP_WINDOWS = ("xfdesktop", "xfce4-panel")              # ... and the window manager shows their windows
 
@@ -36,8 +34,9 @@ def _argv(command: str, user: str | None) -> list[str]:
     return ["sudo", "-n", "-E", "-u", user, "bash", "-c", command]
 
 
-def run(command: str, user: str | None, timeout: float) -> RunResponse:
-    """Run `command` with bash; on timeout its whole process group is killed and the return code is 124.
+def run(command: str, user: str | None, timeout: float) -> dict:
+    """Run `command` with bash; on timeout its whole process group is killed and the return code is 124. The
+    answer has the fields of `protocol.RunResponse`.
 
     Processes the command leaves in the background keep running only if they close its output (e.g.
     `app >/dev/null 2>&1 &`); the answer comes when the command's output is closed.
@@ -56,7 +55,8 @@ def run(command: str, user: str | None, timeout: float) -> RunResponse:
             proc.kill()
             out, err = b"", b""
         code, err = 124, err + f"timed out after {timeout:g} s".encode()
-    return RunResponse(returncode=code, stdout=out.decode("utf-8", "replace"), stderr=err.decode("utf-8", "replace"))
+    return {"returncode": code, "stdout": out.decode("utf-8", "replace"), "stderr": err.decode("utf-8", "replace"),
+            "fault": None}
 
 
 def _kill_group(pgid: int, through_sudo: bool) -> None:

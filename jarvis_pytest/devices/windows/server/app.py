@@ -1,5 +1,5 @@
 """HTTP routing of the Windows control server: the Ubuntu server's API and JSON shapes (`devices/protocol.py`),
-validated by hand (`validate.py`: no pydantic on the embeddable CPython); the plumbing shared with every
+validated by hand (`devices/validate.py`: no pydantic on the embeddable CPython); the plumbing shared with every
 platform's server is in `devices/control_http.py`. Every bad request gets a 4xx JSON `{"error": ...}`; nothing
 crashes it."""
 
@@ -9,8 +9,7 @@ import time
 
 from jarvis_pytest.devices.control_http import (ControlHandler, ControlServer, HttpError, Lazy, execute,
                                                 readiness_within, wait_for_window)
-
-from . import validate
+from jarvis_pytest.devices import validate
 
 PLATFORM = "windows"
 
