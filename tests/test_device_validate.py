@@ -25,7 +25,8 @@ REPO = Path(__file__).resolve().parents[1]
 REQUEST_MODELS: dict[str, type[BaseModel]] = {"run": P.RunRequest, "launch": P.LaunchRequest,
                                               "open": P.OpenRequest, "focus": P.FocusRequest,
                                               "clipboard": P.ClipboardText}
-ACTION_MODELS: dict[str, type[BaseModel]] = {cls.model_fields["type"].default: cls for cls in A._Action.__subclasses__()}
+ACTION_MODELS: dict[str, type[BaseModel]] = {cls.model_fields["type"].default: cls
+                                             for cls in A._Action.__subclasses__()}
 PROBES = [None, True, False, 0, 1, -1, 2, 3, 4, 0.5, 1.0, -0.5, 59.5, 60, 60.5, 120, 120.5, 3600, 3600.5, 10_000,
           10_001, "", "a", "5", "left", "home", [], ["a"], ["a", ""], [1], {}, {"a": 1}]
 
