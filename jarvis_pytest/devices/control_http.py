@@ -1,7 +1,8 @@
 """What the control servers of every platform share (standard library only: it runs on the device, the Windows
-one included, where the embeddable CPython has nothing else): the HTTP plumbing — routing, bodies, queries,
-JSON answers, errors as 4xx/5xx JSON `{"error": ...}` so nothing crashes a server — the execution of the unified
-action space against a platform's input object, and the wait for an application's window."""
+one included, where the embeddable CPython has nothing else): the HTTP plumbing — routing, bodies (requests and
+actions checked by `validate.py`), queries, JSON answers, errors as 4xx/5xx JSON `{"error": ...}` so nothing
+crashes a server — the execution of the unified action space against a platform's input object, and the wait
+for an application's window."""
 
 from __future__ import annotations
 
@@ -11,6 +12,8 @@ import time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any, Callable
 from urllib.parse import parse_qs, urlsplit
+
+from jarvis_pytest.devices import validate
 
 MAX_BODY = 512 * 1024 * 1024
 HEALTH_WAIT_MAX = 5.0   # seconds a `GET /health?wait=S` may hold its answer
@@ -77,6 +80,20 @@ class ControlHandler(BaseHTTPRequestHandler):
             raise HttpError(413, f"body of {n} bytes is not within the {MAX_BODY} byte limit")
         self._body_read = True
         return self.rfile.read(n) if n else b""
+
+    def _request(self, name: str) -> dict:
+        """The body of request `name` (`run`, `launch`, …), checked by `validate.request`; else a 400."""
+        try:
+            return validate.request(name, self._body())
+        except validate.Invalid as exc:
+            raise HttpError(400, f"invalid request: {exc}") from None
+
+    def _action(self) -> dict:
+        """The body as one action (`validate.action`: `type` and every field); else a 400."""
+        try:
+            return validate.action(self._body())
+        except validate.Invalid as exc:
+            raise HttpError(400, f"invalid request: {exc}") from None
 
     def _query(self) -> dict[str, str]:
         return {k: v[-1] for k, v in parse_qs(urlsplit(self.path).query).items()}

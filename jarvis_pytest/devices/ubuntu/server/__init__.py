@@ -1,12 +1,12 @@
 """The control server that runs inside a desktop device: one long-lived process, no interpreter per action.
 
 It runs as the desktop user inside the X session (python3, python-xlib, Pillow and PyGObject from Debian; no
-pydantic: the JSON shapes of `devices/protocol.py`, validated by `devices/validate.py`) and exposes health, screenshot, accessibility tree, actions, files, commands and application launch
-over HTTP on the container's control port (the plumbing and the action dispatch every platform's server shares
-are `devices/control_http.py`; PYAUTOGUI scripts `devices/pyautogui_compat.py`). Modules: `app` (routes and
-endpoints), `screen`
-(capture with the cursor, PNG), `xshm` (MIT-SHM grabs), `xinput` (XTest input, exact Unicode typing),
-`a11y` (AT-SPI tree), `system` (commands, files, launch, readiness).
+pydantic: the JSON shapes of `devices/protocol.py`, validated by `devices/validate.py`) and exposes health,
+screenshot, accessibility tree, actions, files, commands and application launch over HTTP on the container's
+control port (the plumbing and the action dispatch every platform's server shares are `devices/control_http.py`;
+PYAUTOGUI scripts `devices/pyautogui_compat.py`). Modules: `app` (routes and endpoints), `screen` (capture with
+the cursor, PNG), `xshm` (MIT-SHM grabs), `xinput` (XTest input, exact Unicode typing), `a11y` (AT-SPI tree),
+`system` (commands, files, launch, readiness).
 
 Endpoints (JSON unless said; errors are 4xx/5xx `{"error": "..."}`):
   GET  /health                     Health: `desktop` true once the desktop is shown and drawn

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import time
 
-from jarvis_pytest.devices import validate
 from jarvis_pytest.devices.control_http import (ControlHandler, ControlServer, HttpError, Lazy, execute,
                                                 readiness_within, wait_for_window)
 from jarvis_pytest.devices.ubuntu.server import system
@@ -60,12 +59,6 @@ def _desktop_readiness() -> dict[str, bool]:
 class Handler(ControlHandler):
     server_version = "jarvis-control/1"
 
-    def _request(self, name: str) -> dict:
-        try:
-            return validate.request(name, self._body())
-        except validate.Invalid as exc:
-            raise HttpError(400, f"invalid request: {exc}") from None
-
     def _path_arg(self) -> str:
         path = self._query().get("path", "")
         if not path.startswith("/"):
@@ -105,10 +98,7 @@ class Handler(ControlHandler):
     def action(self) -> None:
         from jarvis_pytest.devices.ubuntu.server.xinput import InputError
 
-        try:
-            action = validate.action(self._body())
-        except validate.Invalid as exc:
-            raise HttpError(400, f"invalid request: {exc}") from None
+        action = self._action()
         t0 = time.perf_counter()
         try:
             execute(action, DEVICES.keyboard, PLATFORM, _pyautogui)

@@ -9,7 +9,6 @@ import time
 
 from jarvis_pytest.devices.control_http import (ControlHandler, ControlServer, HttpError, Lazy, execute,
                                                 readiness_within, wait_for_window)
-from jarvis_pytest.devices import validate
 
 PLATFORM = "windows"
 
@@ -59,12 +58,6 @@ def _shell_readiness() -> dict[str, bool]:
 class Handler(ControlHandler):
     server_version = "jarvis-control-windows/1"
 
-    def _request(self, name: str) -> dict:
-        try:
-            return validate.request(name, self._body())
-        except validate.Invalid as exc:
-            raise HttpError(400, f"invalid request: {exc}") from None
-
     def _path_arg(self) -> str:
         from .system import PathError, windows_path
 
@@ -112,10 +105,7 @@ class Handler(ControlHandler):
     def action(self) -> None:
         from .input import InputError
 
-        try:
-            action = validate.action(self._body())
-        except validate.Invalid as exc:
-            raise HttpError(400, f"invalid request: {exc}") from None
+        action = self._action()
         t0 = time.perf_counter()
         try:
             execute(action, DEVICES.input, PLATFORM, _pyautogui)
