@@ -115,7 +115,7 @@ def _fields(where: str, schema: dict[str, tuple], data: dict) -> dict:
         if name not in data:
             if default is REQUIRED:
                 raise Invalid(f"{where}.{name}: field required")
-            out[name] = default
+            out[name] = list(default) if isinstance(default, list) else default  # never the shared default itself
         else:
             out[name] = _check(where, name, spec, data[name])
     return out
@@ -140,7 +140,7 @@ def action(body: bytes) -> dict:
 
 
 def request(name: str, body: bytes) -> dict:
-    """The body of a `run`, `launch`, `open` or `clipboard` request, checked, defaults filled in."""
+    """The body of a `run`, `launch`, `open`, `focus` or `clipboard` request, checked, defaults filled in."""
     data = _json(body)
     if not isinstance(data, dict):
         raise Invalid("the body must be a JSON object")
