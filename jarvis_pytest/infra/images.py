@@ -169,9 +169,9 @@ def _prepare_context(spec: ImageSpec, ctx: Path) -> None:
         dest = ctx / rel
         dest.parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(path, dest)
-    wheels = ctx / "wheels"
-    wheels.mkdir(exist_ok=True)
-    if spec.wheels:
+    if spec.wheels:  # into `wheels/` of the context (only an image that lists wheels has the folder)
+        wheels = ctx / "wheels"
+        wheels.mkdir(exist_ok=True)
         _progress(f"{spec.name}: downloading wheels {list(spec.wheels)}")
         target = ["--python-version", spec.python] if spec.python else []
         proc = subprocess.run([sys.executable, "-m", "pip", "download", "-q", "--only-binary", ":all:", *target,
