@@ -115,11 +115,21 @@ def _containers_cpu_seconds() -> float | None:
         return None
 
 
+def _spawn_seconds(count: int = 200) -> float:
+    """CPU seconds (this process and its children, user and kernel) to start and end `count` processes."""
+    before = os.times()
+    for _ in range(count):
+        subprocess.run(["true"], check=False)
+    after = os.times()
+    return sum(after[:4]) - sum(before[:4])
+
+
 def speed_reference() -> dict[str, float]:
-    """How fast this machine is now: the CPU seconds (best of three) of two fixed pieces of work, a pure-Python
-    loop (like the harness and the control servers) and zlib compressing 4 MB (like a PNG screenshot). Printed
-    beside the figures, it tells a slow day of a shared VM from a slower harness: the same code on the same kind
-    of machine has cost about a quarter more CPU per task from one day to the next."""
+    """How fast this machine is now: the CPU seconds (best of three) of three fixed pieces of work, a pure-Python
+    loop (like the harness and the control servers), zlib compressing 4 MB (like a PNG screenshot) and starting
+    200 processes (fork, exec, page faults: like a device's desktop starting). Printed beside the figures, they
+    tell a slow phase of a shared VM from a slower harness. The first two can miss one: on one day the loop took
+    the same time as the day before while a device's CPU per task and a `docker exec` cost 30-35 % more."""
     data = random.Random(0).randbytes(1 << 22).translate(bytes(i % 16 for i in range(256)))  # 4 bits a byte
 
     def best(work) -> float:
@@ -131,7 +141,8 @@ def speed_reference() -> dict[str, float]:
         return round(min(times), 3)
 
     return {"python_loop_s": best(lambda: sum(i * i for i in range(2_000_000))),
-            "zlib_4mb_s": best(lambda: zlib.compress(data, 6))}
+            "zlib_4mb_s": best(lambda: zlib.compress(data, 6)),
+            "spawn_200_s": round(min(_spawn_seconds() for _ in range(3)), 3)}
 
 
 def steady_state(results: list[Any]) -> dict[str, Any]:
