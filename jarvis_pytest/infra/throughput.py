@@ -128,8 +128,10 @@ def speed_reference() -> dict[str, float]:
     """How fast this machine is now: the CPU seconds (best of three) of three fixed pieces of work, a pure-Python
     loop (like the harness and the control servers), zlib compressing 4 MB (like a PNG screenshot) and starting
     200 processes (fork, exec, page faults: like a device's desktop starting). Printed beside the figures, they
-    tell a slow phase of a shared VM from a slower harness. The first two can miss one: on one day the loop took
-    the same time as the day before while a device's CPU per task and a `docker exec` cost 30-35 % more."""
+    tell a slow phase of a shared VM from a slower harness. The first two can miss one: on 2026-11-27 the loop took
+    0.235 s at 00:30 and at 01:25, while a 12-task 1-worker run's devices took 3.07 CPU-s a task at 00:30 and 2.37
+    at 01:25, and a `docker exec` 0.096 and 0.063 CPU-s. Whether this third one follows such a phase is not yet
+    shown: it was added after that one."""
     data = random.Random(0).randbytes(1 << 22).translate(bytes(i % 16 for i in range(256)))  # 4 bits a byte
 
     def best(work) -> float:
