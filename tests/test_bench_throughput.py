@@ -26,8 +26,7 @@ def test_throughput_bench_runs_real_tasks_and_reports_every_figure(device_images
     result = json.loads(proc.stdout)
     assert [r["workers"] for r in result["runs"]] == [1, 2] and result["latency_ms"] == 200
     speed = result["speed_reference"]  # CPU seconds of fixed work before the first run and after the last
-    assert set(speed) == {"python_loop_s", "zlib_4mb_s", "spawn_200_s"}
-    assert all(len(v) == 2 and min(v) > 0 for v in speed.values()), speed
+    assert set(speed) == {"python_loop_s", "zlib_4mb_s"} and all(len(v) == 2 and min(v) > 0 for v in speed.values())
     for run in result["runs"]:
         assert run["exit"] == 0 and run["tasks"] == run["passed"] == 3, run
         assert run["tasks_per_hour"] > 0 and 0 <= run["cold_start_share"] <= 1
