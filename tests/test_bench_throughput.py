@@ -60,3 +60,20 @@ def test_steady_state_is_read_where_every_worker_is_busy():
     assert steady_state(results) == {"tasks_per_hour": 4 / 30 * 3600, "cold_start_share": round(1.5 / 60, 3),
                                      "tasks": 4, "window_s": 30.0}
     assert steady_state(results[:4] + results[4:5])["tasks_per_hour"] is None  # gw1 ran one task
+
+
+def test_every_run_gives_each_worker_the_same_number_of_tasks_by_default():
+    from jarvis_pytest.infra.throughput import PER_WORKER, render, tasks_for
+
+    # by default each worker of every run does the same work (the 1-worker run is not given more tasks a worker
+    # than the others, which would spread its fixed costs thinner); --tasks N is N in every run
+    assert [tasks_for(w, None) for w in (1, 2, 4, 8)] == [PER_WORKER, 2 * PER_WORKER, 4 * PER_WORKER, 8 * PER_WORKER]
+    assert [tasks_for(w, 5) for w in (1, 8)] == [5, 5]
+    run = {"workers": 1, "tasks": PER_WORKER, "passed": PER_WORKER, "tasks_per_hour": 321.1, "speedup": 1.0,
+           "cold_start_share": 0.013, "overhead_ms": {"p50": 25.2, "p90": 56.8, "steps": 64}, "peak_memory_mb": 401,
+           "cpu_s_per_task": 3.04, "device_cpu_s_per_task": 2.3, "cpu_bound_tasks_per_hour": 2368,
+           "steady": {"tasks_per_hour": 333.2, "speedup": 1.0, "cold_start_share": 0.002}}
+    result = {"task": "mousepad-write_note", "latency_ms": 2000, "tasks": None, "cores": 2, "runs": [run],
+              "speed_reference": {"python_loop_s": [0.223, 0.224], "zlib_4mb_s": [0.214, 0.222]}}
+    assert render(result).startswith(f"{PER_WORKER} × mousepad-write_note per worker in every run, model latency")
+    assert render({**result, "tasks": 5}).startswith("5 × mousepad-write_note per run, model latency")

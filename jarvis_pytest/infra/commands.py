@@ -83,8 +83,8 @@ def register(sub) -> None:
                         "latency, once per worker count")
     t.add_argument("--workers", default="1,2,4,8", help="xdist worker counts to run, comma-separated (default 1,2,4,8)")
     t.add_argument("--latency-ms", type=int, default=2000, help="the model's answer time per call (default 2000)")
-    t.add_argument("--tasks", type=int, default=None, help="tasks per run (default: 12 per worker, at least 24, "
-                   "so that every worker's steady state can be read)")
+    t.add_argument("--tasks", type=int, default=None, help="tasks per run (default: 16 per worker in every run, so "
+                   "that every worker does the same work and its steady state can be read)")
     t.add_argument("--results", default=None, help="where the runs' results go (default reports/)")
     t.add_argument("--json", action="store_true", help="print JSON")
     t.set_defaults(func=_bench_throughput)
