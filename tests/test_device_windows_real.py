@@ -36,6 +36,16 @@ def test_task_container_runs_a_vm_from_an_overlay_of_the_golden_disk():
     assert start.startswith("exec ")  # dockur's own entry takes over as PID 1
 
 
+@pytest.mark.parametrize("ram, mb", [(None, 4096), ("6G", 6144), ("6144M", 6144), ("8gb", 8192),
+                                      (str(3 * 2**30), 3072), ("lots", 4096)])
+def test_a_pre_warm_of_the_vm_needs_its_ram_free(monkeypatch, ram, mb):
+    if ram is None:
+        monkeypatch.delenv("JARVIS_WINDOWS_RAM", raising=False)
+    else:
+        monkeypatch.setenv("JARVIS_WINDOWS_RAM", ram)
+    assert real.ram_mb() == mb  # what RAM_SIZE gives the VM; the pool keeps it (and QEMU's own) free to pre-warm
+
+
 def test_backend_says_why_it_cannot_run(monkeypatch, tmp_path):
     kvm = backend_for("windows", "kvm")
     assert kvm.image_kind == "prepared" and not kvm.stand_in and kvm.label == "windows (kvm)"

@@ -127,6 +127,7 @@ def case_dataset_unknown_evaluator(tmp: Path):
 CASES = {
     "device-memory": (["--agent", "noop", "--device-memory", "bogus"], ["--device-memory", "4g"]),
     "device-cpus": (["--agent", "noop", "--device-cpus", "-2"], ["--device-cpus", "positive"]),
+    "prewarm-reserve-mb": (["--agent", "noop", "--prewarm-reserve-mb", "lots"], ["--prewarm-reserve-mb", "MB"]),
     "task-timeout": (["--agent", "noop", "--task-timeout", "-5"], ["--task-timeout", "positive"]),
     "step-timeout": (["--agent", "noop", "--step-timeout", "0"], ["--step-timeout", "positive"]),
     "instances": (["--agent", "noop", "--instances", "0"], ["--instances", "1 or more"]),

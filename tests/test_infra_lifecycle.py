@@ -24,7 +24,7 @@ from jarvis_pytest.infra.containers import (LABEL_HOST, LABEL_PID, LABEL_PLATFOR
 from jarvis_pytest.infra.containers import labels as ctr_labels
 from jarvis_pytest.infra.lifecycle import Lifecycle, Limits
 from jarvis_pytest.infra.networks import attached
-from jarvis_pytest.infra.pool import Pool
+from jarvis_pytest.infra.pool import Pool, available_memory_mb
 
 pytestmark = pytest.mark.containers
 
@@ -388,6 +388,38 @@ def test_pool_prewarm_is_faster_than_a_cold_boot_and_close_removes_all(lifecycle
     assert not pool.wait_prewarmed(("ubuntu",), timeout=0) and leftovers(lifecycle.run_id) == []
 
 
+def test_a_prewarm_waits_while_memory_is_short_but_a_task_gets_its_devices_at_once(lifecycle, standin_platforms,
+                                                                                   capfd):
+    platforms = standin_platforms[:1]
+    free = available_memory_mb()  # this machine's MemAvailable: the bound reads the real figure
+    assert free and free > 0
+    assert lifecycle.booted_memory_mb(platforms) == (lifecycle.backend(platforms[0]).booted_memory_mb
+                                                     + lifecycle.server.booted_memory_mb) > 0
+    short = free + 10**6  # a reserve this machine cannot keep beside any boot
+    with Pool(lifecycle, reserve_mb=short) as pool:
+        pool.prewarm(platforms)
+        time.sleep(2)
+        assert not pool.wait_prewarmed(platforms, timeout=0) and leftovers(lifecycle.run_id) == []  # nothing made
+        assert capfd.readouterr().err.count("waits for memory") == 1  # said once, not at every check
+        pool.reserve_mb = 0  # memory is free again: the waiting pre-warm boots on its own
+        assert pool.wait_prewarmed(platforms, timeout=60)
+        ahead = pool.acquire(platforms)
+        assert set(ahead.containers) == {platforms[0], "transfer"}
+        ahead.close()
+        pool.reserve_mb = short
+        pool.prewarm(platforms)
+        time.sleep(1)
+        assert not pool.wait_prewarmed(platforms, timeout=0) and leftovers(lifecycle.run_id) == []
+        t0 = time.monotonic()
+        asked = pool.acquire(platforms)  # a task asks for it: it boots now, memory or not, as without a pre-warm
+        assert set(asked.containers) == {platforms[0], "transfer"} and time.monotonic() - t0 < 60
+        asked.close()
+        pool.prewarm(platforms)  # waiting when the pool closes: cancelled, nothing left
+        time.sleep(0.5)
+        t0 = time.monotonic()
+    assert time.monotonic() - t0 < 5 and leftovers(lifecycle.run_id) == []
+
+
 def cpu_shares(container) -> tuple[int, int]:
     """A container's CPU weight as Docker has it (0: its default) and as the kernel applies it (its cgroup)."""
     container.reload()
@@ -482,7 +514,7 @@ sys.path.insert(0, sys.argv[2])
 from conftest import STANDIN_PLATFORMS, register_standin_backends
 register_standin_backends()
 from jarvis_pytest.infra.lifecycle import Lifecycle
-from jarvis_pytest.infra.pool import Pool
+from jarvis_pytest.infra.pool import Pool, available_memory_mb
 pool = Pool(Lifecycle(sys.argv[1], "gw7"))
 pool.prewarm(STANDIN_PLATFORMS)
 assert pool.wait_prewarmed(STANDIN_PLATFORMS, timeout=60)

@@ -161,6 +161,10 @@ class Lifecycle:
     def backend(self, platform: str) -> Backend:
         return backend_for(platform, self.choices.get(platform))
 
+    def booted_memory_mb(self, platforms: tuple[str, ...] | list[str]) -> int:
+        """About what a freshly booted environment of `platforms` holds: its devices and its drive."""
+        return sum(self.backend(p).booted_memory_mb for p in dict.fromkeys(platforms)) + self.server.booted_memory_mb
+
     def _ensure_image(self, image: str, pull: bool) -> None:
         import docker.errors
 

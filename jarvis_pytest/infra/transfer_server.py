@@ -47,6 +47,7 @@ class TransferServer:
     # run in the drive's container between tasks: returns 0 once a fresh server was started on a wiped drive (None:
     # the flavour cannot be renewed, and each task gets a new container)
     renew: tuple[str, ...] | None = None
+    booted_memory_mb: int = 64            # about what a started drive holds (copyparty: 37 MB idle)
 
 
 def _provision_alist(base_url: str, admin_password: str) -> None:

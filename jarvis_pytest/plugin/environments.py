@@ -24,4 +24,4 @@ def make_environments(options: JarvisOptions, *, run_id: str, worker: str):
     lifecycle = Lifecycle(run_id, worker, Limits(memory=options.device_memory, cpus=options.device_cpus),
                           transfer=options.transfer, backends=options.backends, egress=options.allow_egress,
                           docker_host=for_worker(options.docker_hosts, worker), keep_networks=KEEP_PER_WORKER)
-    return Pool(lifecycle, enabled=options.prewarm)
+    return Pool(lifecycle, enabled=options.prewarm, reserve_mb=options.prewarm_reserve_mb)

@@ -13,6 +13,7 @@ import pytest
 
 from jarvis_pytest.errors import ConfigError
 from jarvis_pytest.infra import engines
+from jarvis_pytest.infra.pool import PREWARM_RESERVE_MB
 from jarvis_pytest.plugin.loop import LoopLimits
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -54,6 +55,9 @@ def addoption(parser: pytest.Parser) -> None:
                 "host, the local network, the internet); off by default, and recorded in every result")
     g.addoption("--keep-devices", action="store_true", help="keep each task's devices after it ends, for debugging")
     g.addoption("--no-prewarm", action="store_true", help="do not boot the next task's devices in advance")
+    g.addoption("--prewarm-reserve-mb", default=str(PREWARM_RESERVE_MB), help="memory (MB) a pre-warm leaves "
+                "free for running tasks: the next task's devices start booting only while this much stays available "
+                f"beside them (default {PREWARM_RESERVE_MB})")
     g.addoption("--library", default=str(REPO_ROOT / "tasks"), help="folder of atomic task templates")
     g.addoption("--dataset", action="append", default=None, metavar="FILE",
                 help="composed-task dataset file(s) (default: tasks/composed/*.json)")
@@ -84,6 +88,7 @@ class JarvisOptions:
     datasets: list[Path]
     instances: int
     transfer: str | None = None
+    prewarm_reserve_mb: float = PREWARM_RESERVE_MB
     qc: bool = False
     endpoints: dict[str, dict[str, str | None]] = field(default_factory=dict)
     allow_egress: bool = False
@@ -158,6 +163,8 @@ def read_options(config: pytest.Config) -> JarvisOptions:
     memory = config.getoption("--device-memory")
     if memory is not None and not MEMORY.match(str(memory).strip()):
         raise _bad("--device-memory", memory, "give a size such as 4g, 1536m or 2147483648")
+    reserve = float(_number(config, "--prewarm-reserve-mb", float, minimum=0,
+                            fix="give the MB to keep free for running tasks, e.g. 2048 (0: no reserve)"))
     cpus = None
     if config.getoption("--device-cpus") is not None:
         cpus = float(_number(config, "--device-cpus", float, minimum=0.01,
@@ -186,6 +193,7 @@ def read_options(config: pytest.Config) -> JarvisOptions:
         agent=agent, agent_options=pairs, limits=limits, results_dir=results_dir, resume=resume,
         device_memory=str(memory).strip() if memory is not None else None, device_cpus=cpus,
         keep_devices=config.getoption("--keep-devices"), prewarm=not config.getoption("--no-prewarm"),
+        prewarm_reserve_mb=reserve,
         library=library, datasets=[Path(p) for p in datasets], instances=instances,
         transfer=config.getoption("--transfer"), qc=config.getoption("--qc"),
         endpoints={"planner": _endpoint(config, "planner"), "grounder": _endpoint(config, "grounder")},

@@ -224,6 +224,7 @@ EMULATOR = EmulatorBackend(
     image_kind="prepared",
     ready_timeout=240.0,          # 2.5-4 s from the snapshot; a cold boot (snapshot refused by this CPU) ~60 s
     memory="6g",
+    booted_memory_mb=2048 + 512,  # the AVD's RAM (hw.ramSize), and the emulator
     cpus=None,
     unavailable=emulator_unavailable,
     how_to_run=("on a machine with /dev/kvm and internet: JARVIS_ANDROID_DOWNLOAD=1 jarvis images build --only "
@@ -240,6 +241,7 @@ ATTACH = AttachBackend(
     image_kind="prepared",
     ready_timeout=120.0,
     memory=None,
+    booted_memory_mb=0,  # the device exists already: nothing boots here
     cpus=None,
     unavailable=attach_unavailable,
     how_to_run="connect a device (`adb devices` lists it), then run with --android-backend attach "

@@ -13,6 +13,7 @@ BACKEND = Backend(
     wait_ready=wait_ready,
     container_options={"shm_size": "512m"},
     memory="4g",
+    booted_memory_mb=200,   # 150 MB idle (`jarvis bench devices`), with room for the task's set-up
     ready_timeout=60.0,
     holder=True,
 )

@@ -17,12 +17,13 @@ def _connect(url: str) -> DesktopDevice:
 
 WINE = Backend(
     platform="windows", name="wine", image="windows", connect=_connect, wait_ready=wait_ready,
-    memory="2g", ready_timeout=60.0, stand_in=True, drive_mount=DRIVE_MOUNT, holder=True,
+    memory="2g", booted_memory_mb=200, ready_timeout=60.0, stand_in=True, drive_mount=DRIVE_MOUNT, holder=True,
     how_to_run="`jarvis images build --only windows` (offline, from Debian's Wine)",
 )
 
 KVM = Backend(
     platform="windows", name="kvm", image=real.IMAGE, image_kind="prepared", connect=_connect,
     wait_ready=wait_ready, container_options=real.task_container_options(), memory=None, ready_timeout=300.0,
+    booted_memory_mb=real.ram_mb() + 256,  # the VM's RAM, and QEMU
     unavailable=real.unavailable, how_to_run=real.HOW_TO_RUN,
 )

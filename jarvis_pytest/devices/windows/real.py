@@ -46,6 +46,16 @@ HOW_TO_RUN = (f"on a machine with /dev/kvm and internet, `{DOWNLOAD_ENV}=1 jarvi
               "`pytest --windows-backend kvm ...`")
 
 
+def ram_mb() -> int:
+    """The VM's RAM in MB, as dockur reads `RAM_SIZE` (`JARVIS_WINDOWS_RAM`: e.g. 4G, 6144M; 4G by default)."""
+    value = os.environ.get("JARVIS_WINDOWS_RAM", "4G").strip().upper().removesuffix("B")
+    scale = {"G": 1024, "M": 1, "T": 1024 * 1024}.get(value[-1:], None)
+    try:
+        return int(float(value[:-1]) * scale) if scale else int(value) // (1024 * 1024)
+    except ValueError:
+        return 4096
+
+
 def environment(first_boot: bool = False) -> dict[str, str]:
     """dockur's settings: the Windows version, the user, the control port forwarded into the VM, resources."""
     env = {"VERSION": VERSION, "USERNAME": USER, "PASSWORD": PASSWORD, "USER_PORTS": str(CONTROL_PORT),
