@@ -6,9 +6,9 @@ from __future__ import annotations
 import atexit
 import sys
 import threading
-from pathlib import Path
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import wait as wait_futures
+from pathlib import Path
 
 from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.infra.containers import BootPriority
@@ -77,7 +77,8 @@ class Pool:
                 self._ready[key] = (self._executor.submit(self._boot_when_room, key, priority, wanted), priority,
                                     wanted)
 
-    def _boot_when_room(self, key: tuple[str, ...], priority: BootPriority, wanted: threading.Event) -> TaskEnvironment:
+    def _boot_when_room(self, key: tuple[str, ...], priority: BootPriority,
+                        wanted: threading.Event) -> TaskEnvironment:
         """Boot `key` once the memory allows (or a task asks for it: `wanted`)."""
         need, said = self.lifecycle.booted_memory_mb(key), False
         while not wanted.is_set():
