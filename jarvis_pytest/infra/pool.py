@@ -9,10 +9,13 @@ import threading
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import wait as wait_futures
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.infra.containers import BootPriority
-from jarvis_pytest.infra.lifecycle import Lifecycle, TaskEnvironment
+
+if TYPE_CHECKING:  # annotations only: the plugin's options read PREWARM_RESERVE_MB without the lifecycle's imports
+    from jarvis_pytest.infra.lifecycle import Lifecycle, TaskEnvironment
 
 # Memory a pre-warm leaves free for the running tasks (MB, --prewarm-reserve-mb): their applications grow as
 # they open documents, browsers and images, and a pre-warm that took that memory would starve them.

@@ -46,9 +46,14 @@ HOW_TO_RUN = (f"on a machine with /dev/kvm and internet, `{DOWNLOAD_ENV}=1 jarvi
               "`pytest --windows-backend kvm ...`")
 
 
+def ram_size() -> str:
+    """The VM's RAM as dockur's `RAM_SIZE` takes it: `JARVIS_WINDOWS_RAM`, else 4G."""
+    return os.environ.get("JARVIS_WINDOWS_RAM", "4G")
+
+
 def ram_mb() -> int:
-    """The VM's RAM in MB, as dockur reads `RAM_SIZE` (`JARVIS_WINDOWS_RAM`: e.g. 4G, 6144M; 4G by default)."""
-    value = os.environ.get("JARVIS_WINDOWS_RAM", "4G").strip().upper().removesuffix("B")
+    """The VM's RAM in MB, read from `ram_size()` as dockur reads it (e.g. 4G, 6144M)."""
+    value = ram_size().strip().upper().removesuffix("B")
     scale = {"G": 1024, "M": 1, "T": 1024 * 1024}.get(value[-1:], None)
     try:
         return int(float(value[:-1]) * scale) if scale else int(value) // (1024 * 1024)
@@ -59,7 +64,7 @@ def ram_mb() -> int:
 def environment(first_boot: bool = False) -> dict[str, str]:
     """dockur's settings: the Windows version, the user, the control port forwarded into the VM, resources."""
     env = {"VERSION": VERSION, "USERNAME": USER, "PASSWORD": PASSWORD, "USER_PORTS": str(CONTROL_PORT),
-           "RAM_SIZE": os.environ.get("JARVIS_WINDOWS_RAM", "4G"), "CPU_CORES": os.environ.get("JARVIS_WINDOWS_CPUS", "2"),
+           "RAM_SIZE": ram_size(), "CPU_CORES": os.environ.get("JARVIS_WINDOWS_CPUS", "2"),
            "DISK_FMT": "qcow2"}
     if not first_boot:
         env["MANUAL"] = "N"
