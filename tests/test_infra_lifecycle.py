@@ -18,6 +18,7 @@ from conftest import standin_backend, within_rules
 
 from jarvis_pytest.devices.backend import Backend, register_backend
 from jarvis_pytest.errors import InfrastructureError
+from jarvis_pytest.infra import lifecycle as lifecycle_module
 from jarvis_pytest.infra.cleanup import cleanup, orphan_sweep
 from jarvis_pytest.infra.containers import (LABEL_HOST, LABEL_PID, LABEL_PLATFORM, LABEL_ROLE, LABEL_RUN,
                                             LABEL_WORKER, BootPriority)
@@ -133,7 +134,7 @@ def drive_generation(container) -> int:
     return int(container.exec_run(["cat", "/run/jarvis-drive"]).output.split()[0])
 
 
-def test_a_kept_drive_is_renewed_wiped_and_checked_empty(standin_platforms, lifecycle, capfd):
+def test_a_kept_drive_is_renewed_wiped_and_checked_empty(standin_platforms, lifecycle, capfd, monkeypatch):
     import dataclasses
 
     lc = Lifecycle(lifecycle.run_id, "gw3", keep_networks=1)
@@ -172,15 +173,29 @@ def test_a_kept_drive_is_renewed_wiped_and_checked_empty(standin_platforms, life
     renewed.transfer.upload("/data/mine.txt", b"x")
     renewed.close()
 
-    # the check can fail: a renewal that wipes nothing leaves the file; the boot fails and leaves nothing
-    renew = lc.server.renew
-    lc.server = dataclasses.replace(lc.server, renew=("true",))
+    # the checks can fail. A signal the drive does not renew on: no next generation, so the kept drive (with the
+    # file) is replaced by a new one, and that is said
+    renew_signal = lc.server.renew_signal
+    lc.server = dataclasses.replace(lc.server, renew_signal="SIGCONT")
+    monkeypatch.setattr(lifecycle_module, "RENEW_TIMEOUT", 1.0)
+    capfd.readouterr()
+    replaced = lc.boot(standin_platforms[:1])
+    assert replaced.containers["transfer"].id != drive.id and replaced.transfer.walk("/") == []
+    assert f"kept drive {drive.name}: renewal failed: no new server within 1 s of SIGCONT (still generation 2)" \
+        in capfd.readouterr().err
+    replaced.transfer.upload("/data/mine.txt", b"x")
+    replaced.close()
+    # and were the generation check fooled, the emptiness check is not: the old server's file fails the boot, which
+    # leaves nothing
+    counts = iter(range(100))
+    monkeypatch.setattr(lifecycle_module, "served_generation", lambda container: next(counts))
     with pytest.raises(InfrastructureError, match=r"is not empty: .*mine.txt"):
         lc.boot(standin_platforms[:1])
     assert leftovers(lc.run_id) == []
+    monkeypatch.undo()
 
     # a drive whose server ended by itself is not started again (it exits as copyparty did) and is replaced
-    lc.server = dataclasses.replace(lc.server, renew=renew)
+    lc.server = dataclasses.replace(lc.server, renew_signal=renew_signal)
     third = lc.boot(standin_platforms[:1])
     crashed = third.containers["transfer"]
     crashed.exec_run(["sh", "-c", "read -r g p </run/jarvis-drive; kill -KILL $p"])

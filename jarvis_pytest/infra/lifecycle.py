@@ -32,10 +32,12 @@ from jarvis_pytest.infra import engines
 from jarvis_pytest.infra.networks import KeptDrive, TaskNetworks, remove_network
 from jarvis_pytest.infra.transfer import TransferClient, check_empty
 from jarvis_pytest.infra.transfer_server import (TRANSFER_ALIAS, TRANSFER_PASSWORD, TRANSFER_USER, TransferServer,
-                                                 transfer_server)
+                                                 served_generation, transfer_server)
 
 TRANSFER_ROLE = "transfer"
 TRANSFER_READY_TIMEOUT = 60.0
+RENEW_TIMEOUT = 10.0   # seconds a kept drive may take to start its next server (about 0.05 here)
+RENEW_POLL = 0.02      # seconds between looks at its log (each one request to the engine, about 2.5 ms of its CPU)
 
 
 @dataclass(frozen=True)
@@ -151,7 +153,7 @@ class Lifecycle:
         if not egress:
             egress_policy.ensure_rules()
         self.networks = TaskNetworks(self.docker, run_id, worker, egress, keep=keep_networks,
-                                     keep_drives=self.server.renew is not None)
+                                     keep_drives=self.server.renew_signal is not None)
 
     def close(self) -> None:
         """Remove the networks kept for later tasks (idempotent; environments still out are their holders' to
@@ -200,10 +202,15 @@ class Lifecycle:
             return None
         if (kept.volume is not None) == mounted:
             try:
-                result = kept.container.exec_run(list(self.server.renew))
-                if result.exit_code == 0:
-                    return kept
-                why = f"renewal exited {result.exit_code}: {result.output.decode(errors='replace').strip()[:300]}"
+                before = served_generation(kept.container)
+                kept.container.kill(signal=self.server.renew_signal)
+                deadline = time.monotonic() + RENEW_TIMEOUT
+                while served_generation(kept.container) <= before:  # its old server gone, the drive wiped
+                    if time.monotonic() > deadline:
+                        raise InfrastructureError(f"no new server within {RENEW_TIMEOUT:g} s of "
+                                                  f"{self.server.renew_signal} (still generation {before})")
+                    time.sleep(RENEW_POLL)
+                return kept
             except Exception as exc:
                 why = f"renewal failed: {exc}"
                 try:

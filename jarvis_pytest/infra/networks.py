@@ -5,7 +5,7 @@ transfer drive still running on it.
 Creating and removing a bridge costs the engine about 40 firewall calls and a bridge interface: here a boot and
 close of an Ubuntu environment took 1.61 s with a new network and 1.39 s with a kept one. Around the drive's
 server (whose start costs the same either way), a new drive container costs the engine about 0.36 CPU-s to
-create, start, publish and remove; renewing a kept one in place about 0.06 (one `exec`: the drive's PID 1 starts
+create, start, publish and remove; renewing a kept one in place about 0.02 (a signal: the drive's PID 1 starts
 a new server on a wiped drive; `Lifecycle` then checks that it answers and is empty). So `TaskNetworks(keep=N)`
 keeps up to N networks whose task has ended, with their drive (`KeptDrive`) when the lifecycle keeps drives. It
 hands one out again only once the engine lists no container on it but that drive. At any moment, then, a network

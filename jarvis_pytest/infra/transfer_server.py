@@ -44,9 +44,10 @@ class TransferServer:
     built_here: bool = True                                 # built by `jarvis images build` (else pulled)
     port: int = TRANSFER_PORT
     storage: str = COPYPARTY_DRIVE_ROOT   # the drive's root inside its container (`/data` is a folder in it)
-    # run in the drive's container between tasks: returns 0 once a fresh server was started on a wiped drive (None:
-    # the flavour cannot be renewed, and each task gets a new container)
-    renew: tuple[str, ...] | None = None
+    # sent to the drive's PID 1 between tasks: it starts a fresh server on a wiped drive and prints the server's
+    # `generation N` on standard output, alone there (`fixtures/images/transfer/drive.py`). None: the flavour
+    # cannot be renewed, and each task gets a new container
+    renew_signal: str | None = None
     booted_memory_mb: int = 64            # about what a started drive holds (copyparty: 37 MB idle)
 
 
@@ -77,7 +78,14 @@ def _alist() -> TransferServer:
 
 def _copyparty() -> TransferServer:
     return TransferServer(flavour="copyparty", image=image_tag("transfer"), client=CopypartyClient,
-                          renew=("python3", "/opt/jarvis/drive.py", "renew"))
+                          renew_signal="SIGUSR1")
+
+
+def served_generation(container: Any) -> int:
+    """How many servers the drive's PID 1 has started: its last `generation N` line (0: none yet). Read from the
+    container's standard output, which the drive's own users cannot write to (its servers write to stderr)."""
+    last = container.logs(stdout=True, stderr=False, tail=1).decode(errors="replace").split()
+    return int(last[1]) if len(last) == 2 and last[0] == "generation" and last[1].isdigit() else 0
 
 
 FLAVOURS: dict[str, Callable[[], TransferServer]] = {"copyparty": _copyparty, "alist": _alist}
