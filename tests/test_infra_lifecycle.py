@@ -529,7 +529,7 @@ sys.path.insert(0, sys.argv[2])
 from conftest import STANDIN_PLATFORMS, register_standin_backends
 register_standin_backends()
 from jarvis_pytest.infra.lifecycle import Lifecycle
-from jarvis_pytest.infra.pool import Pool, available_memory_mb
+from jarvis_pytest.infra.pool import Pool
 pool = Pool(Lifecycle(sys.argv[1], "gw7"))
 pool.prewarm(STANDIN_PLATFORMS)
 assert pool.wait_prewarmed(STANDIN_PLATFORMS, timeout=60)
