@@ -1,8 +1,8 @@
 """A composed multi-device task end to end on real devices: Windows (Wine) and Ubuntu on one task network with
 the transfer drive. The oracle makes a file on Windows, carries it through the drive (S: on Windows, curl on
 Ubuntu) and uses it on Ubuntu; from the result files alone: every subtask passed, the transfer's evaluator saw
-one SHA-256 on the source, the drive and the destination, and the result says which backends ran (Windows as a
-stand-in). `noop` fails the same task."""
+the file the drive received and served on the destination, with the source's bytes, and the result says which
+backends ran (Windows as a stand-in). `noop` fails the same task."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ import pytest
 
 from jarvis_pytest.report.rollup import load_results
 from jarvis_pytest.tasks.dataset import load_dataset
+from jarvis_pytest.tasks.transfer import TransferLinks, transfer_links
 
 pytestmark = pytest.mark.containers
 REPO = Path(__file__).resolve().parents[1]
@@ -23,11 +24,12 @@ DATASET = REPO / "tasks" / "composed" / "jarvis_150.json"
 
 def windows_to_ubuntu_task() -> str:
     """The first MD task of the default dataset that goes from Windows to Ubuntu, runs here (no backend-specific
-    template) and compares all three copies (no other subtask edits the source or the received file)."""
+    template) and compares both sides of its transfer (no later subtask changes the source or the received
+    file)."""
     for task in load_dataset(DATASET).tasks:
-        transfers = [s for s in task.formatted_subtasks if s.template == "transfer-windows-to-ubuntu"]
-        whole = transfers and all(not ({"source_changes_later", "destination_changes_later"} & set(e.args))
-                                  for s in transfers for e in s.evaluate)
+        transfers = [t for t, s in enumerate(task.formatted_subtasks) if s.template == "transfer-windows-to-ubuntu"]
+        whole = transfers and all(transfer_links(task.formatted_subtasks, task.edges, t) == TransferLinks(
+            upstream=t - 1, downstream=(t + 1,)) for t in transfers)
         if task.category == "md" and whole and set(task.devices) == {"ubuntu", "windows"}:
             return task.id
     raise AssertionError("the default dataset has no Windows → Ubuntu MD task")
@@ -48,11 +50,13 @@ def test_md_task_carries_a_file_from_windows_to_ubuntu_unchanged(device_images, 
     assert result.backends == {"ubuntu": "ubuntu (docker)", "windows": "windows (wine)"}
     assert result.stand_ins == ["windows"]
     (transfer,) = [s for s in result.subtasks if s.template == "transfer-windows-to-ubuntu"]
-    checks = {e.func: e for e in transfer.evaluators}
-    assert checks["transfer_has_file"].passed
-    reason = checks["transfer_arrived_unchanged"].reason  # "... sha256 source X, drive X, destination X"
-    digests = [part.split()[-1] for part in reason.split("sha256 ", 1)[1].split(", ")]
-    assert len(digests) == 3 and len(set(digests)) == 1, reason
+    (check,) = transfer.evaluators
+    # "... found /data/<name> (sha256 X, N bytes, served 1×) arrived through the drive; <destination> holds it"
+    assert check.func == "transfer_arrived_unchanged" and check.passed
+    assert "served 1×) arrived through the drive" in check.reason and "holds it" in check.reason, check.reason
+    folder = next((tmp_path / "oracle" / "tasks").iterdir())
+    ledger = [json.loads(line) for line in (folder / "drive_ledger.jsonl").read_text().splitlines()]
+    assert [r["ev"] for r in ledger if r["ev"] in ("mark", "write", "read")] == ["mark", "write", "read", "mark"]
     # the commands of the oracle ran on both devices, and the summary marks the Windows numbers as a stand-in's
     steps = [json.loads(l) for l in next((tmp_path / "oracle" / "tasks").iterdir()).joinpath("traj.jsonl").read_text().splitlines()]
     assert {"windows", "ubuntu"} <= {c["platform"] for s in steps for c in s["extra"].get("commands", [])}

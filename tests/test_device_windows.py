@@ -410,8 +410,9 @@ def test_open_a_file_with_its_program(device, http):
     device.upload(path, "opened".encode())
     try:
         r = http.post("/open", json={"path": path, "window_wait": 20})
-        assert r.json() == {"ok": True, "window": True}
-        assert window(http, "open me.txt - Notepad", 2)
+        answer = r.json()
+        assert answer["ok"] is answer["window"] is True and set(answer) == {"ok", "window", "id"}
+        assert window(http, "open me.txt - Notepad", 2)["id"] == answer["id"]  # the window it opened, by id
         assert http.post("/open", json={"path": DOCS + r"\missing.txt"}).status_code == 404
         assert http.post("/open", json={"path": "relative.txt"}).status_code == 400
     finally:
@@ -436,6 +437,137 @@ def test_focus_brings_the_named_application_to_the_front(device, http):
         assert not device.focus("no such window", timeout=0.5)
     finally:
         device.run("taskkill /f /im notepad.exe & taskkill /f /im wordpad.exe")
+
+
+WORDPAD_TEXTS = r"""
+import ctypes, json
+from ctypes import wintypes as W
+u = ctypes.windll.user32
+u.FindWindowExW.restype = W.HWND
+u.FindWindowExW.argtypes = [W.HWND, W.HWND, W.LPCWSTR, W.LPCWSTR]
+u.GetWindowTextW.argtypes = [W.HWND, W.LPWSTR, ctypes.c_int]
+u.SendMessageW.restype = ctypes.c_ssize_t
+u.SendMessageW.argtypes = [W.HWND, W.UINT, W.WPARAM, W.LPARAM]
+out, top = {}, None
+while True:
+    top = u.FindWindowExW(None, top, "WORDPADTOP", None)
+    if not top:
+        break
+    edit = u.FindWindowExW(top, None, "RichEdit20W", None)
+    buf = ctypes.create_unicode_buffer(4096)
+    u.SendMessageW(edit, 0x000D, 4096, ctypes.cast(buf, ctypes.c_void_p).value)  # WM_GETTEXT
+    out[str(top)] = buf.value
+print(json.dumps(out))
+"""
+
+
+def wordpad_texts(device) -> dict[int, str]:
+    """The document text of every WordPad window, by window id."""
+    import json
+
+    device.upload(r"C:\jarvis\wordpad_texts.py", WORDPAD_TEXTS.encode())
+    r = device.run(r"C:\jarvis\python\python.exe C:\jarvis\wordpad_texts.py")
+    assert r.returncode == 0, r.stderr
+    return {int(k): v for k, v in json.loads(r.stdout).items()}
+
+
+def test_the_oracle_acts_on_its_subtasks_window_not_on_another_of_the_same_title(device, http):
+    """The class behind sw-0020 (its File menu never opened): an earlier subtask's WordPad (A) holds the file that
+    a later subtask opens again (B): two windows of one title, A with edits of its own; and a program that starts
+    meanwhile (Notepad here) takes the foreground after the oracle brought B to the front, before its keys. The
+    oracle agent, step by step as the harness runs it: every GUI step of the subtask goes to B: the typed text into
+    B's document (not A's, not Notepad's), and Alt+F opens B's File menu (B holds the foreground)."""
+    from types import SimpleNamespace
+
+    from jarvis_pytest.agents.oracle import OracleAgent
+    from jarvis_pytest.agents.protocol import TaskContext
+    from jarvis_pytest.tasks.model import Launch, SolutionStep
+
+    path = DOCS + r"\same file.rtf"
+    title = "same file.rtf - *wordpad"
+    device.upload(path, rb"{\rtf1\ansi{\fonttbl\f0\fswiss Arial;}\f0\pard one file, two windows\par}")
+    try:
+        assert device.launch("wordpad", path, window_wait=20)  # A: the earlier subtask's window
+        a = window(http, "same file.rtf - Wine Wordpad")["id"]
+        wait_for(lambda: next(w for w in windows(http) if w["id"] == a)["focused"], what="A in front")
+        assert device.act(A.Typing(text="stale ")).ok  # what the earlier subtask did to A's document
+        wait_for(lambda: wordpad_texts(device).get(a, "").startswith("stale "), what="A edited")
+        earlier = SimpleNamespace(platform="windows", window=title, opens=None, solution=[])
+        later = SimpleNamespace(platform="windows", window=title, opens=[Launch(app="wordpad", args=[path])],
+                                solution=[SolutionStep(action={"type": "TYPING", "text": "fresh "}),
+                                          SolutionStep(action={"type": "HOTKEY", "keys": ["alt", "f"]})])
+        agent = OracleAgent()
+        agent.reset(TaskContext("two-windows", "-", ("windows",), subtasks=(earlier, later)))
+        agent.attach_devices({"windows": device})
+        assert [(p.subtask, p.kind) for p in agent.queue] == [(1, "open"), (1, "focus"), (1, "step"), (1, "step")]
+        steps = []
+        while True:
+            if agent.queue and agent.queue[0].kind == "step":
+                # a program started meanwhile takes the foreground (as a window that starts late does)
+                if not any("Notepad" in w["title"] for w in windows(http)):
+                    assert device.launch("notepad", window_wait=20)
+                assert device.focus("Notepad")
+                wait_for(lambda: any(w["focused"] and "Notepad" in w["title"] for w in windows(http)),
+                         what="Notepad in front")
+            step = agent.act({}, [])
+            steps.append(step)
+            if step.action.type in ("DONE", "FAIL"):
+                break
+            assert device.act(step.action).ok
+        assert steps[-1].action.type == "DONE", steps[-1].reasoning
+        b = next(w["id"] for w in windows(http) if "same file.rtf" in w["title"] and w["id"] != a)
+        wait_for(lambda: wordpad_texts(device).get(b, "").startswith("fresh "), 10, "the text typed into B",
+                 str(http.base_url))
+        assert wordpad_texts(device)[a].startswith("stale one file") and "fresh" not in wordpad_texts(device)[a]
+        wait_for(lambda: any(w["class"] == "#32768" for w in windows(http)), 10, "a menu open", str(http.base_url))
+        assert [w["id"] for w in windows(http) if w["focused"]] == [b]  # the menu is B's: B holds the foreground
+        notepad = find(device.a11y_tree()["tree"], lambda n: n.get("class") == "Notepad")
+        assert not find(notepad, lambda n: n.get("class") == "Edit").get("text")  # nothing typed into Notepad
+        records = [s.extra.get("focus") for s in steps]
+        assert [r["window"] for r in records if r] == [b, b, b]  # the subtask's window: B, by its id
+        assert [r["changed"] for r in records if r][1:] == [True, True]  # brought back before each GUI step
+    finally:
+        device.run("taskkill /f /im wordpad.exe & taskkill /f /im notepad.exe")
+
+
+def test_windows_are_named_by_id_and_the_newest_of_a_title_is_brought_to_the_front(device, http):
+    """`launch` names the window it waited for; `focus` by `id` brings that window and no other of the same title,
+    by title the newest; a foreground that is already the window's own (its menu open) is left as it is; `windows`
+    says each window's process."""
+    path = DOCS + r"\named.txt"
+    device.upload(path, b"named\r\n")
+    try:
+        first = device.launch_window("wordpad", path, window_wait=20).id
+        second = device.launch_window("wordpad", path, window_wait=20).id
+        assert first and second and first != second
+        wait_for(lambda: sum("named.txt - Wine Wordpad" == w["title"] for w in windows(http)) == 2, what="two shown")
+        answer = device.focus_window("named.txt - *wordpad", id=first)
+        assert answer["id"] == first and answer["changed"]
+        assert [w["id"] for w in windows(http) if w["focused"]] == [first]
+        assert device.focus_window("named.txt - *wordpad")["id"] == second  # by title: the newest
+        assert [w["id"] for w in windows(http) if w["focused"]] == [second]
+        pids = {w["id"]: w["pid"] for w in windows(http)}
+        assert pids[first] != pids[second] and all(pids.values())
+        assert device.act(A.Hotkey(keys=["alt", "f"])).ok
+        menu = wait_for(lambda: next((w for w in windows(http) if w["class"] == "#32768"), None), what="menu")
+        assert menu["pid"] == pids[second]
+        kept = device.focus_window(id=second)
+        assert kept["changed"] is False and any(w["id"] == menu["id"] for w in windows(http))  # the menu stays
+        # the templates' wait for a menu looks at the menus of the subtask's program only (JARVIS_WINDOW_PID)
+        import json
+        from pathlib import Path
+
+        steps = json.loads((Path(__file__).parents[1] / "tasks/windows/wordpad_save_rtf.json").read_text())["solution"]
+        wait = next(s["command"] for s in steps if s.get("note", "").startswith("wait for a visible menu"))
+        wait = wait.replace("range(300)", "range(10)")
+        assert device.run(f'set "JARVIS_WINDOW_PID={pids[second]}"& {wait}').returncode == 0
+        assert device.run(f'set "JARVIS_WINDOW_PID={pids[first]}"& {wait}').returncode == 1  # another program's
+        assert device.run(wait).returncode == 0  # told no program: any menu, as before
+        assert device.focus_window("named.txt - Notepad", timeout=0.5) is None
+        assert device.focus_window(id=first, title="no such title", timeout=0.5) is None
+    finally:
+        device.run("taskkill /f /im wordpad.exe")
+    assert device.focus_window(id=first, timeout=0.5) is None  # gone
 
 
 # -- accessibility, bad input, concurrency ---------------------------------------------------------------------

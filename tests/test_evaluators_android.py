@@ -27,6 +27,7 @@ from jarvis_pytest.evaluators import get_evaluator
 from jarvis_pytest.evaluators.browser import bookmarks_checksum
 from jarvis_pytest.evaluators.state import FinalState
 from jarvis_pytest.generators import generate
+from tests.file_state import posix_facts_reply
 
 MKSH = shutil.which("mksh")
 
@@ -46,6 +47,9 @@ class FakeAndroid:
 
     def run(self, command: str, *, timeout: float = 60.0, user: str | None = None) -> CommandResult:
         self.sent.append((command, user))
+        facts = posix_facts_reply(command, self.files)  # the file-facts script, answered from `files`
+        if facts is not None:
+            return CommandResult(0, facts, "")
         for pattern, reply in self.replies.items():
             if re.search(pattern, command):
                 return CommandResult(0, reply, "")
@@ -460,7 +464,9 @@ def test_file_deleted_not_moved():
     v = ev(state_of(moved, base), path=path, kept=[kept])
     assert not v.passed and "its content still at /sdcard/Download/s.png" in v.reason
     both = FakeAndroid({r"^find /sdcard ": ""}, files={})
-    assert "k.png gone" in ev(state_of(both, base), path=path, kept=[kept]).reason
+    assert "k.png: gone" in ev(state_of(both, base), path=path, kept=[kept]).reason
+    damaged = FakeAndroid({r"^find /sdcard ": ""}, files={kept: b"\x89PNG other"})
+    assert "k.png: it holds other content" in ev(state_of(damaged, base), path=path, kept=[kept]).reason
     still = FakeAndroid(files={path: b"", kept: keep})
     assert "still there" in ev(state_of(still, base), path=path, kept=[kept]).reason
 

@@ -13,7 +13,9 @@ import pytest
 
 from jarvis_pytest.evaluators import browser
 from jarvis_pytest.evaluators.browser import bookmarks, bookmarks_checksum, check_bookmark
-from jarvis_pytest.evaluators.desktop import check_answer, check_copy, check_saved_page
+from jarvis_pytest.evaluators import get_evaluator
+from jarvis_pytest.evaluators.desktop import check_answer, check_saved_page
+from tests.file_state import state_with
 
 URL = "file:///home/user/site/status.html"
 
@@ -137,14 +139,18 @@ CSV = b"name,team,score\nAda,red,7\nBo,blue,9\n"
 
 
 def test_the_downloaded_file_must_be_the_file_offered_as_set_up():
-    assert check_copy(CSV, CSV, "/home/user/Downloads/contacts.csv", "/home/user/site/files/contacts.csv", CSV,
-                      keep_reference=True).passed
+    served, download = "/home/user/site/files/contacts.csv", "/home/user/Downloads/contacts.csv"
+
+    def copied(files: dict[str, bytes]):
+        return get_evaluator("file_copied")(state_with(files, baselines={served: CSV}), path=download, source=served)
+
+    assert copied({served: CSV, download: CSV}).passed
     junk = b"name,value\n1,1\n"  # written over the served file and into Downloads alike
-    verdict = check_copy(junk, CSV, "/home/user/Downloads/contacts.csv", "/home/user/site/files/contacts.csv", junk,
-                         keep_reference=True)
-    assert not verdict.passed and "not the original's" in verdict.reason
-    half = check_copy(CSV[:20], CSV, "/home/user/Downloads/contacts.csv", "/home/user/site/files/contacts.csv", CSV)
-    assert not half.passed and "20 bytes" in half.reason
+    verdict = copied({served: junk, download: junk})
+    assert not verdict.passed and "the original changed" in verdict.reason
+    half = copied({served: CSV, download: CSV[:20]})
+    assert not half.passed and "copy holds other content (20 bytes)" in half.reason
+    assert "no copy" in copied({served: CSV}).reason
 
 
 def test_the_tracking_number_exactly_as_shown_passes():

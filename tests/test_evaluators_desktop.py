@@ -6,10 +6,13 @@ from __future__ import annotations
 import io
 import zipfile
 
-from jarvis_pytest.evaluators.files import (check_ini_value, check_last_line, check_line_endings,
-                                            check_lines_filtered, check_trashinfo, check_zip_members)
+from jarvis_pytest.devices.platforms import PLATFORMS
+from jarvis_pytest.evaluators.file_facts import Entry, trashinfo_original
+from jarvis_pytest.evaluators.files import check_ini_value, check_last_line, check_zip_members
+from jarvis_pytest.evaluators.folders import check_trashed
 from jarvis_pytest.evaluators.media import check_mp3, check_playlist, check_snapshot_color, playlist_entries
 from jarvis_pytest.evaluators.settings import check_setting, check_wallpaper
+from jarvis_pytest.evaluators.text import check_line_endings, check_lines_deleted
 from jarvis_pytest.generators import generate
 from PIL import Image
 
@@ -40,9 +43,18 @@ def test_line_endings_last_line_and_filtered_lines():
     assert check_last_line("bread\ntea\nmilk\n\n", "milk", ["bread", "tea"]).passed
     lost = check_last_line("milk\n", "milk", ["bread"])
     assert not lost.passed and "lost" in lost.reason
-    assert check_lines_filtered("keep a\nkeep b\n", "drop", ["keep a", "keep b"]).passed
-    assert not check_lines_filtered("keep a\nDROP me\n", "drop", ["keep a"]).passed
-    assert not check_lines_filtered("keep a\n", "drop", ["keep a", "keep b"]).passed
+    assert check_lines_deleted(b"keep a\nkeep b\n", "drop", ["keep a", "keep b"]).passed
+    assert not check_lines_deleted(b"keep a\nDROP me\n", "drop", ["keep a"]).passed
+    assert not check_lines_deleted(b"keep a\n", "drop", ["keep a", "keep b"]).passed
+    original = b"keep a\r\nDrop me\r\nkeep b\r\n"
+    assert check_lines_deleted(b"keep a\r\nkeep b\r\n", "drop", [], original).passed
+    for wrong, found in ((b"keep a\nkeep b\n", "the right lines with 2 LF line breaks"),
+                         (b"keep a\r\n\r\nkeep b\r\n", "line 2 is '\\r\\n'"),
+                         (b"\xef\xbb\xbfkeep a\r\nkeep b\r\n", "the right text but stored as UTF-8 with BOM"),
+                         (b"keep a\r\nkeep b", "without a final line break")):
+        verdict = check_lines_deleted(wrong, "drop", [], original)
+        assert not verdict.passed and found in verdict.reason, (wrong, verdict.reason)
+    assert "a broken set-up" in check_lines_deleted(b"x\n", "drop", [], b"x\n").reason
 
 
 def test_zip_members_trash_and_ini():
@@ -54,8 +66,11 @@ def test_zip_members_trash_and_ini():
     assert not check_zip_members(buf.getvalue(), ["part_two.txt"]).passed
     assert not check_zip_members(b"plain text", ["a"]).passed
     info = "[Trash Info]\nPath=/home/user/Downloads/old%20draft.txt\nDeletionDate=2026-01-01T00:00:00\n"
-    assert check_trashinfo({"old draft.txt.trashinfo": info}, "/home/user/Downloads/old draft.txt").passed
-    assert not check_trashinfo({}, "/home/user/Downloads/x.txt").passed
+    trashed = [(trashinfo_original(info), Entry(exists=True, kind="file", size=1, sha256="ab"))]
+    assert trashed[0][0] == "/home/user/Downloads/old draft.txt"
+    assert check_trashed(PLATFORMS["ubuntu"], trashed, "/home/user/Downloads/old draft.txt", "ab").passed
+    assert "holds other content" in check_trashed(PLATFORMS["ubuntu"], trashed, trashed[0][0], "cd").reason
+    assert not check_trashed(PLATFORMS["ubuntu"], [], "/home/user/Downloads/x.txt", None).passed
     vlcrc = "[core]\n#snapshot-path=\nsnapshot-path=/home/user/Pictures/snaps/\n"
     assert check_ini_value(vlcrc, "snapshot-path", "/home/user/Pictures/snaps").passed
     assert not check_ini_value("[core]\n#snapshot-path=/x\n", "snapshot-path", "/x").passed

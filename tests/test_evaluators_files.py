@@ -9,13 +9,16 @@ import json
 import os
 import shutil
 import subprocess
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
 from jarvis_pytest.devices.base import CommandResult
+from jarvis_pytest.devices.platforms import PLATFORMS
 from jarvis_pytest.evaluators import get_evaluator
-from jarvis_pytest.evaluators.files import check_line_endings, digest_text, text_lines
+from jarvis_pytest.evaluators.files import digest_text, text_lines
+from jarvis_pytest.evaluators.text import check_line_endings
 from jarvis_pytest.evaluators.state import FinalState
 from jarvis_pytest.generators import generate
 from jarvis_pytest.tasks.instances import materialise
@@ -95,11 +98,20 @@ def test_copy_passes_a_real_copy_and_rejects_links_and_a_changed_original(copy_t
     assert passed(check(sub, {}))  # fed by an upstream subtask: no baseline, compared as they are
     os.remove(copy)
     os.symlink(src, copy)
-    assert "symbolic link" in reasons(check(sub, base))
+    assert "copy is a link, not a file" in reasons(check(sub, base))
     os.remove(copy)
     os.link(src, copy)
     assert "hard link" in reasons(check(sub, base))
     os.remove(copy)
+    shutil.copy2(src, copy)
+    Path(copy).write_bytes(Path(copy).read_bytes() + b"x")  # the right name, other bytes
+    assert "copy holds other content" in reasons(check(sub, base))
+    os.remove(copy)
+    os.rename(src, copy)
+    os.symlink(copy, src)  # moved, and a link to it left where the original was
+    assert "original is a link" in reasons(check(sub, base))
+    os.remove(src)
+    shutil.copy2(copy, src)
     Path(src).write_bytes(b"")
     shutil.copy2(src, copy)
     assert "original changed" in reasons(check(sub, base))
@@ -124,12 +136,15 @@ def test_move_and_rename_need_the_original_content_at_the_new_place(tmp_path, te
     assert "copied, not moved" in reasons(check(sub, base))
     os.remove(src)
     assert passed(check(sub, base))  # the file manager's move (same bytes at the new place)
+    shutil.copy(dest, os.path.join(os.path.dirname(src), "." + os.path.basename(src)))  # a hidden copy kept
+    assert "a copy of" in reasons(check(sub, base)) and "(hidden)" in reasons(check(sub, base))
+    os.remove(os.path.join(os.path.dirname(src), "." + os.path.basename(src)))
     Path(dest).write_bytes(b"")  # an empty file of that name, the original deleted
-    assert "a different file" in reasons(check(sub, base))
+    assert "holds other content" in reasons(check(sub, base))
     assert passed(check(sub, {}))  # no baseline (fed input): only the move is checked
     os.remove(dest)
     os.symlink("/etc/hostname", dest)
-    assert "symbolic link" in reasons(check(sub, base))
+    assert "a link, not a file" in reasons(check(sub, base))
 
 
 @pytest.fixture
@@ -155,10 +170,13 @@ def test_sorting_passes_the_careful_move(sort_task):
 
 
 @pytest.mark.parametrize("command,reason", [
-    ("mkdir by_type && for n in alpha beta gamma; do : > by_type/$n.csv; rm $n.csv; done", "not the original"),
+    ("mkdir by_type && for n in alpha beta gamma; do : > by_type/$n.csv; rm $n.csv; done", "holds other content"),
+    ("mkdir by_type && cp *.csv by_type/ && for n in alpha beta gamma; do mv $n.csv .$n.csv; done",
+     "a copy of alpha.csv left at .alpha.csv (hidden)"),
+    ("mkdir by_type && mv *.csv by_type/ && echo x > by_type/.notes", "by_type also holds ['.notes (hidden)']"),
     ("mkdir by_type && mv *.csv by_type/ && mv other.png other.txt by_type/", "other.png gone from the folder"),
     ("mkdir by_type && mv alpha.csv by_type/ && cp beta.csv gamma.csv by_type/", "beta.csv still in the folder"),
-    ("mkdir by_type && mv *.csv by_type/ && echo x > other.pdf", "other.pdf changed"),
+    ("mkdir by_type && mv *.csv by_type/ && echo x > other.pdf", "other.pdf holds other content"),
 ])
 def test_sorting_rejects_the_negatives(sort_task, command, reason):
     folder, spec, base = sort_task
@@ -170,28 +188,32 @@ def test_sorting_rejects_the_negatives(sort_task, command, reason):
 TRASHINFO = "[Trash Info]\nPath={path}\nDeletionDate=2026-01-01T00:00:00\n"
 
 
-def test_trash_needs_the_trashed_data_and_the_other_file_unchanged(tmp_path):
+def test_trash_needs_the_trashed_data_and_the_other_file_unchanged(tmp_path, monkeypatch):
     victim, keep = tmp_path / "dl" / "old draft.txt", tmp_path / "dl" / "keep_me.txt"
     trash = tmp_path / "Trash"
+    monkeypatch.setitem(PLATFORMS, "ubuntu", replace(PLATFORMS["ubuntu"], trash=str(trash)))
     victim.parent.mkdir()
     victim.write_text("not needed any more\n")
     keep.write_text("still needed\n")
     base = {str(victim): victim.read_bytes(), str(keep): keep.read_bytes()}
-    in_trash = {"func": "file_in_trash", "args": {"name": victim.name, "original": str(victim), "trash": str(trash)}}
-    absent = {"func": "file_absent", "args": {"path": str(victim), "kept": [str(keep)]}}
+    in_trash = {"func": "file_in_trash", "args": {"original": str(victim), "kept": [str(keep)]}}
     (trash / "files").mkdir(parents=True), (trash / "info").mkdir()
+    assert "it still there" in evaluate(in_trash, base).reason
     info = trash / "info" / f"{victim.name}.trashinfo"
     info.write_text(TRASHINFO.format(path=str(victim).replace(" ", "%20")))
     (trash / "files" / victim.name).write_bytes(b"")  # deleted for good, an entry faked with an empty file
     victim.unlink()
     verdict = evaluate(in_trash, base)
-    assert not verdict.passed and "another file" in verdict.reason
+    assert not verdict.passed and "trashed data holds other content" in verdict.reason
     (trash / "files" / victim.name).write_bytes(base[str(victim)])  # what Move to Trash leaves
-    assert evaluate(in_trash, base).passed and evaluate(absent, base).passed
+    assert evaluate(in_trash, base).passed
     assert evaluate(in_trash, {}).passed  # no baseline (fed input): the entry and some data
+    (victim.parent / ".old draft.txt").write_bytes(base[str(victim)])  # trashed, and a hidden copy kept
+    assert "a copy of old draft.txt left at .old draft.txt (hidden)" in evaluate(in_trash, base).reason
+    (victim.parent / ".old draft.txt").unlink()
     keep.write_text("scratch\n")
-    verdict = evaluate(absent, base)
-    assert not verdict.passed and "keep_me.txt changed" in verdict.reason
+    verdict = evaluate(in_trash, base)
+    assert not verdict.passed and "keep_me.txt: it holds other content" in verdict.reason
 
 
 # -- terminal ------------------------------------------------------------------------------------------------
@@ -204,7 +226,12 @@ def test_count_must_leave_the_log_unchanged(tmp_path):
     assert evaluate(spec, base).passed
     log.write_text("a ERROR\nc ERROR\n")
     verdict = evaluate(spec, base)
-    assert not verdict.passed and "server.log changed" in verdict.reason
+    assert not verdict.passed and "server.log: it holds other content" in verdict.reason
+    log.write_text("a ERROR\nb INFO\nc ERROR\n")
+    assert evaluate(spec, base).passed
+    os.link(log, tmp_path / "second name.log")  # the log's bytes kept, but a second name made for it
+    verdict = evaluate(spec, base)
+    assert not verdict.passed and "server.log: it is a second name of another file" in verdict.reason
 
 
 def test_the_script_output_is_what_running_the_script_writes(tmp_path):
@@ -256,7 +283,7 @@ def test_unzip_passes_unzip_d_and_an_extract_here_folder(archive_task):
     ("mkdir -p '{t}/inner' && echo 'readme for photos' > '{t}/README.txt' && : > '{t}/inner/data.csv' && "
      ": > '{t}/inner/logo.png'", "inner/data.csv (0 bytes, 4 in the archive)"),
     ("mkdir -p '{t}' && unzip -q '{a}' README.txt -d '{t}'", "missing"),
-    ("mkdir -p '{t}' && unzip -q '{a}' -d '{t}' && rm '{a}'", "photos.zip gone"),
+    ("mkdir -p '{t}' && unzip -q '{a}' -d '{t}' && rm '{a}'", "photos.zip: gone"),
     ("mkdir -p '{t}' && unzip -qj '{a}' -d '{t}'", "missing"),
 ])
 def test_unzip_rejects_the_negatives(archive_task, command, reason):
@@ -293,7 +320,7 @@ def test_zip_passes_the_folder_zipped(zip_task, command):
     ("d=$(mktemp -d) && mkdir $d/thesis && touch $d/thesis/part_one.txt $d/thesis/part_two.txt $d/thesis/cover.png"
      " && cd $d && zip -qr '{a}' thesis", "different content"),
     ("cd '{d}' && zip -qr '{a}' thesis -x '*.png'", "no ['cover.png']"),
-    ("cd '{d}' && zip -qrm '{a}' thesis", "part_one.txt gone"),
+    ("cd '{d}' && zip -qrm '{a}' thesis", "part_one.txt: gone"),
     ("cd '{f}' && zip -q '{a}' *", "inside its folder thesis/"),  # the files without their folder
     ("echo 'not a zip' > '{a}'", "not a zip archive"),
 ])
@@ -335,13 +362,19 @@ def test_crlf_must_keep_every_line(tmp_path):
     assert not passed(check(sub, base))
     path.write_bytes(base[str(path)].replace(b"\n", b"\r\n"))  # what the editor's Line Ending > DOS saves
     assert passed(check(sub, base))
-    for bad, reason in ((b"Notes on VPN access\r\n\r\n", "1 line(s), expected 4"),
+    converted = base[str(path)].replace(b"\n", b"\r\n")
+    for bad, reason in ((b"Notes on VPN access\r\n\r\n", "line 2 is '\\r\\n'"),
                         (b"Notes on VPN access\r\n2. follow the guide\r\n3. report back\r\n", "line 2"),
-                        (base[str(path)].replace(b"\n", b"\r"), "0 CRLF"),
-                        (base[str(path)].replace(b"\n", b"\r\r\n"), "stray CR")):
+                        (base[str(path)].replace(b"\n", b"\r"), "the right lines with 4 CR line breaks"),
+                        (base[str(path)].replace(b"\n", b"\r\r\n"), "4 CR, 4 CRLF line breaks"),  # stray CRs
+                        (converted + b"\r\n\r\n", "an extra line 5"),           # blank lines added at the end
+                        (converted.replace(b"\r\n", b"  \r\n", 1), "line 1 is"),  # trailing spaces
+                        (b"\xef\xbb\xbf" + converted, "stored as UTF-8 with BOM"),
+                        (converted[:-2], "without a final line break")):
         path.write_bytes(bad)
         assert reason in reasons(check(sub, base)), (bad, reasons(check(sub, base)))
-    assert check_line_endings(b"a\r\nb\r\n", "crlf", b"a\nb").passed
+    assert check_line_endings(b"a\r\nb\r\n", "crlf", b"a\nb\n").passed
+    assert not check_line_endings(b"a\r\nb\r\n", "crlf", b"a\nb").passed  # a final line break added
 
 
 def test_delete_lines_must_delete_whole_lines_only(tmp_path):
@@ -351,29 +384,41 @@ def test_delete_lines_must_delete_whole_lines_only(tmp_path):
     kept = "Anna Berg - confirmed\nCarla Diaz - confirmed\nEli Ford - pending\n"
     path.write_text(kept)
     assert passed(check(sub, base))
-    path.write_text(kept.rstrip("\n"))  # saved without a final newline
+    path.write_text(kept.rstrip("\n"))  # the last line deleted from the end of the line before it
     assert passed(check(sub, base))
     path.write_text("Anna Berg - confirmed\n\nCarla Diaz - confirmed\n\nEli Ford - pending\n\n")
-    assert passed(check(sub, base))  # the lines' text deleted, empty lines left where they were
+    assert "line 2 is '\\n'" in reasons(check(sub, base))  # the lines' text deleted, empty lines left
     path.write_text(base[str(path)].decode().replace("obsolete", ""))  # the word erased, the lines kept
-    assert "line 2 is 'Ben Cole -'" in reasons(check(sub, base))
+    assert "line 2 is 'Ben Cole - \\n'" in reasons(check(sub, base))
     path.write_text(kept + "Eli Ford - pending\n")
     assert "an extra line 4" in reasons(check(sub, base))
+    path.write_bytes(kept.replace("\n", "\r\n").encode())  # the lines deleted, the file saved with CRLF
+    assert "the right lines with 3 CRLF line breaks" in reasons(check(sub, base))
+    path.write_text(kept.replace("Diaz", "Díaz"))  # a kept line edited
+    assert "line 2 is 'Carla Díaz - confirmed\\n'" in reasons(check(sub, base))
     path.write_text("")
-    assert "0 line(s), expected 3" in reasons(check(sub, base))
+    assert "an empty file" in reasons(check(sub, base))
+    path.write_text(kept)
+    assert passed(check(sub, {}))  # no baseline (fed by an upstream subtask): no word, the kept lines there
+    path.write_text(kept.replace("Eli Ford", "Eli  Ford"))
+    assert "lost ['Eli Ford - pending']" in reasons(check(sub, {}))
 
 
 def test_replace_must_leave_the_rest_of_the_text(tmp_path):
     sub, path, base = text_task(tmp_path, "mousepad_replace_text", text_file="/home/user/Documents/todo.txt",
                                 old_word="Monday", new_word="Friday")
     assert not passed(check(sub, base))
-    path.write_text(base[str(path)].decode().replace("Monday", "Friday").rstrip("\n"))  # Replace All, saved
+    replaced = base[str(path)].decode().replace("Monday", "Friday")
+    path.write_text(replaced)  # Replace All, saved: the editor keeps the line breaks and the final one
     assert passed(check(sub, base))
-    for bad, reason in (("Friday\n", "line 1 is 'Friday'"),
+    for bad, reason in (("Friday\n", "line 1 is 'Friday\\n'"),
                         ("The Friday review has moved.\nPlease read the Friday items before lunch.\n", "line 1"),
-                        (base[str(path)].decode().replace("Monday", "Friday", 1), "line 3")):
-        path.write_text(bad)
-        assert reason in reasons(check(sub, base)), bad
+                        (base[str(path)].decode().replace("Monday", "Friday", 1), "line 3"),
+                        (replaced.replace("\n", "\r\n"), "the right lines with 3 CRLF line breaks"),
+                        (replaced.rstrip("\n"), "without a final line break"),
+                        (replaced.replace("\n", "   \n", 1), "line 1 is")):
+        path.write_bytes(bad.encode())
+        assert reason in reasons(check(sub, base)), (bad, reasons(check(sub, base)))
     path.write_text("Friday\n")
     assert passed(check(sub, {}))  # no baseline: the weaker check (new word present, old absent)
 

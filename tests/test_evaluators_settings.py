@@ -11,12 +11,13 @@ from types import SimpleNamespace
 import pytest
 from PIL import Image
 
-from jarvis_pytest.evaluators import settings
-from jarvis_pytest.evaluators.desktop import (check_copy, check_deleted, check_size_report, check_vlc_option,
+from jarvis_pytest.evaluators import get_evaluator, settings
+from jarvis_pytest.evaluators.desktop import (check_deleted, check_size_report, check_vlc_option,
                                               vlcrc_values)
 from jarvis_pytest.evaluators.settings import (check_font, check_theme_dark, check_typed_setting, check_unchanged,
                                                check_wallpaper_picture, check_workspaces, css_background,
                                                gtkrc_background, lightness, parse_font, theme_dirs, xfconf_xml)
+from tests.file_state import posix_facts_reply, state_with
 
 # -- themes: the lines that decide the colours in the themes the Ubuntu image ships (/usr/share/themes) ---------
 ADWAITA_DARK_CSS = '@import url("resource:///org/gtk/libgtk/theme/Adwaita/gtk-contained-dark.css");\n'
@@ -265,17 +266,16 @@ KEPT = ["/home/user/Pictures/trip/beach.png", "/home/user/Pictures/trip/castle.p
 
 
 def test_a_trashed_or_removed_picture_with_the_others_kept_passes():
-    assert check_deleted(SHOT, False, [], {k: (True, True) for k in KEPT}).passed
+    assert check_deleted(SHOT, False, [], KEPT, []).passed
 
 
-@pytest.mark.parametrize("still, elsewhere, kept, found", [
-    (False, ["/home/user/Documents/blurry_shot.png"], {k: (True, True) for k in KEPT}, "moved or copied to"),
-    (True, [], {k: (True, True) for k in KEPT}, "still there"),
-    (False, [], {KEPT[0]: (False, None), KEPT[1]: (True, True)}, "lost"),
-    (False, [], {KEPT[0]: (True, True), KEPT[1]: (True, False)}, "castle.png changed"),
+@pytest.mark.parametrize("still, elsewhere, changed, found", [
+    (False, ["/home/user/Documents/blurry_shot.png"], [], "moved or copied to"),
+    (True, [], [], "still there"),
+    (False, [], [f"{KEPT[1]}: it holds other content (3 bytes)"], "castle.png: it holds other content"),
 ])
-def test_a_moved_kept_or_damaging_deletion_fails(still, elsewhere, kept, found):
-    verdict = check_deleted(SHOT, still, elsewhere, kept)
+def test_a_moved_kept_or_damaging_deletion_fails(still, elsewhere, changed, found):
+    verdict = check_deleted(SHOT, still, elsewhere, KEPT, changed)
     assert not verdict.passed and found in verdict.reason, verdict.reason
 
 
@@ -299,18 +299,26 @@ def test_a_swapped_partial_or_noisy_size_fails(text, found):
 ORIGINAL = png("white", gradient=True)
 
 
+def saved_copy(copy: bytes | None, now: bytes | None):
+    """file_copied on a device holding the copy `copy` at /d/backup.png and the original `now` at /p/receipt.png
+    (None: no file), the original as set up being ORIGINAL."""
+    files = {p: d for p, d in (("/d/backup.png", copy), ("/p/receipt.png", now)) if d is not None}
+    return get_evaluator("file_copied")(state_with(files, baselines={"/p/receipt.png": ORIGINAL}),
+                                        path="/d/backup.png", source="/p/receipt.png")
+
+
 def test_a_byte_identical_copy_with_the_original_kept_passes():
-    assert check_copy(ORIGINAL, ORIGINAL, "/d/backup.png", "/p/receipt.png", ORIGINAL, keep_reference=True).passed
+    assert saved_copy(ORIGINAL, ORIGINAL).passed
 
 
 @pytest.mark.parametrize("copy, now, found", [
-    (png("white"), png("white"), "not the original's"),          # junk written over both: they agree, not the picture
-    (ORIGINAL[:-1] + b"\x00", ORIGINAL, "not the original's"),   # re-encoded or altered
-    (ORIGINAL, None, "gone (moved, not copied)"),                # the original moved to the copy's name
-    (None, ORIGINAL, "no file at /d/backup.png"),
+    (png("white"), png("white"), "the original changed"),        # junk written over both: they agree, not the picture
+    (ORIGINAL[:-1] + b"\x00", ORIGINAL, "copy holds other content"),  # re-encoded or altered
+    (ORIGINAL, None, "the original gone"),                       # the original moved to the copy's name
+    (None, ORIGINAL, "no copy"),
 ])
 def test_a_copy_of_junk_a_changed_copy_or_a_move_fails(copy, now, found):
-    verdict = check_copy(copy, ORIGINAL, "/d/backup.png", "/p/receipt.png", now, keep_reference=True)
+    verdict = saved_copy(copy, now)
     assert not verdict.passed and found in verdict.reason, verdict.reason
 
 
@@ -354,7 +362,10 @@ def test_an_unread_line_the_wrong_folder_or_other_changes_fail(text, exists, fou
 
 # -- the evaluators around the checks, on a stand-in device ----------------------------------------------------------
 class FakeDevice:
-    """Answers the commands the evaluators run: `responses` maps a command's start to (returncode, stdout)."""
+    """Answers the commands the evaluators run: `responses` maps a command's start to (returncode, stdout); the
+    file-facts script is answered from `files`."""
+
+    platform = "ubuntu"
 
     def __init__(self, responses: dict[str, tuple[int, str]], files: dict[str, bytes] | None = None,
                  baselines: dict[str, bytes] | None = None) -> None:
@@ -362,6 +373,9 @@ class FakeDevice:
 
     def run(self, command: str, platform=None, user=None):
         self.commands.append(command)
+        facts = posix_facts_reply(command, self.files)
+        if facts is not None:
+            return SimpleNamespace(returncode=0, stdout=facts, stderr="")
         for start, (rc, out) in self.responses.items():
             if command.startswith(start):
                 return SimpleNamespace(returncode=rc, stdout=out, stderr="")
@@ -418,6 +432,12 @@ def test_file_deleted_searches_for_the_content_only_when_it_knows_it():
     # a composed task's input (no baseline): a file of that name elsewhere may be its source, so no search
     fed = FakeDevice({"find": (0, "/home/user/Downloads/blurry_shot.png\n")}, files={k: b"x" for k in KEPT})
     assert file_deleted(fed, SHOT, KEPT).passed and not any(c.startswith("find") for c in fed.commands)
+    damaged = FakeDevice({"find": (0, "")}, files={KEPT[0]: b"x", KEPT[1]: b"changed"},
+                         baselines={SHOT: ORIGINAL, KEPT[0]: b"x", KEPT[1]: b"x"})
+    verdict = file_deleted(damaged, SHOT, KEPT)
+    assert not verdict.passed and f"{KEPT[1]}: it holds other content" in verdict.reason
+    lost = FakeDevice({"find": (0, "")}, files={KEPT[1]: b"x"})
+    assert f"{KEPT[0]}: gone" in file_deleted(lost, SHOT, KEPT).reason
 
 
 def test_one_evaluator_checks_the_asked_change_and_what_must_stay():

@@ -1,9 +1,11 @@
-"""The Windows file, Recycle Bin, Command Prompt and Task Manager evaluators (`evaluators/windows_files.py`), run on
-host files (no container): a host folder stands in for the device's drives (`C:\\x` is `<tmp>/C/x`), the probe's
-own file code (`PROBE`'s `entry` and `tree`) reads it, and processes, windows and Recycle Bin records are given as
-the probe reports them. For each template the result a careful person (or the application) leaves passes, and
-each near-miss state of the template's `negatives` fails with a reason naming what is wrong. Instances come from
-the templates themselves (rendered with fixed slot values)."""
+"""The evaluators of the Windows file-manager, Command Prompt and Task Manager templates (`folders.py` and
+`text.py` on Windows, `windows_files.py`, `windows_processes.py`), run on host files (no container): a host folder stands in for the
+device's drives (`C:\\x` is `<tmp>/C/x`), the probe's own file code (`PROBE`'s `entry` and `tree`) reads it,
+hidden and system attributes are given per host path, and processes, windows and Recycle Bin records are given as
+the probe reports them. Set-up runs the template's uploads and takes the set-up snapshots its evaluators ask for.
+For each template the result a careful person (or the application) leaves passes, and each near-miss state of the
+template's `negatives` fails with a reason naming what is wrong. Instances come from the templates themselves
+(rendered with fixed slot values)."""
 
 from __future__ import annotations
 
@@ -17,25 +19,34 @@ from pathlib import Path
 import pytest
 
 from jarvis_pytest.devices.base import CommandResult
-from jarvis_pytest.evaluators import get_evaluator, windows_files as W
+from jarvis_pytest.devices.platforms import PLATFORMS
+from jarvis_pytest.errors import InfrastructureError
+from jarvis_pytest.evaluators import folders as F, get_evaluator, text as T, windows_probe as P
+from jarvis_pytest.evaluators import windows_processes as WP, windows_recycle_bin as RB
+from jarvis_pytest.evaluators.snapshots import capture_setup_snapshots
 from jarvis_pytest.evaluators.state import FinalState
 from jarvis_pytest.generators import generate
 from jarvis_pytest.tasks.instances import materialise
 from jarvis_pytest.tasks.model import Subtask, TaskTemplate
 
 LIBRARY = Path(__file__).resolve().parents[1] / "tasks" / "windows"
+WINDOWS = PLATFORMS["windows"]
 PROBE_NS: dict = {"__name__": "probe"}
-exec(compile(W.PROBE, "probe.py", "exec"), PROBE_NS)  # the probe's own functions, run on host paths
+exec(compile(P.PROBE, "probe.py", "exec"), PROBE_NS)  # the probe's own functions, run on host paths
+PROBE_NS["HEADS"].update(WINDOWS.shell_files)
+HIDDEN, SYSTEM = 0x2, 0x4
 
 
 class WinHost:
-    """A Windows device whose drives are folders of the host; `processes`, `windows` and `trash` are what the
-    probe would report. Commands: the evaluator's scratch run of a batch file (its `mkdir` lines) and `rmdir`."""
+    """A Windows device whose drives are folders of the host; `attrs` the hidden/system attributes of host paths;
+    `processes`, `windows` and `trash` are what the probe would report. Commands: the evaluator's scratch run of a
+    batch file (its `mkdir` lines) and `rmdir`."""
 
     platform = "windows"
 
     def __init__(self, root: Path):
         self.root = root
+        self.attrs: dict[Path, int] = {}
         self.processes: list[dict] = []
         self.windows: list[dict] = []
         self.trash: dict = {"xdg": [], "recycle": [], "prefix": "/root/.wine"}
@@ -74,10 +85,20 @@ class WinHost:
             return CommandResult(0, "", "")
         raise AssertionError(f"unexpected command {command!r}")
 
-    def probe(self, state, *, entries=None, trees=None, processes=False, windows=False, trash=False, platform=None):
-        out = {"entries": {p: PROBE_NS["entry"](str(self.host(p))) for p in entries or []},
-               "trees": {r: PROBE_NS["tree"](str(self.host(r))) if self.host(r).is_dir() else None
-                         for r in trees or []}}
+    def entry(self, host: Path) -> dict:
+        """The probe's facts of a host path, with the attributes `attrs` gives it."""
+        info = PROBE_NS["entry"](str(host))
+        if info["exists"]:
+            info.update(hidden=bool(self.attrs.get(host, 0) & HIDDEN), system=bool(self.attrs.get(host, 0) & SYSTEM))
+        return info
+
+    def tree(self, root: Path, depth) -> dict:
+        return {rel: self.entry(root / rel) for rel in PROBE_NS["tree"](str(root), depth)}
+
+    def probe(self, state, *, entries=None, trees=None, depth=None, processes=False, windows=False, trash=None,
+              heads=None, platform=None):
+        out = {"entries": {p: self.entry(self.host(p)) for p in entries or []},
+               "trees": {r: self.tree(self.host(r), depth) if self.host(r).is_dir() else None for r in trees or []}}
         if processes:
             out["processes"] = self.processes
         if windows:
@@ -90,12 +111,13 @@ class WinHost:
 @pytest.fixture
 def dev(tmp_path, monkeypatch) -> WinHost:
     device = WinHost(tmp_path)
-    monkeypatch.setattr(W, "probe", device.probe)
+    monkeypatch.setattr(P, "probe", device.probe)
+    monkeypatch.setattr(WP, "probe", device.probe)
     return device
 
 
-def instance(name: str, **values) -> Subtask:
-    tpl = TaskTemplate.model_validate(json.loads((LIBRARY / f"{name}.json").read_text()))
+def instance(template: str, **values) -> Subtask:
+    tpl = TaskTemplate.model_validate(json.loads((LIBRARY / f"{template}.json").read_text()))
     return materialise(tpl, values)
 
 
@@ -105,7 +127,13 @@ def set_up(dev: WinHost, sub: Subtask) -> dict[str, bytes]:
         if step.type == "upload_file":
             data = step.content.encode() if step.content is not None else generate(step.generator, step.args)
             dev.upload(step.path, data)
-    return {p: dev.download(p) for p in sub.baseline if dev.exists(p)}
+    return capture(dev, sub)
+
+
+def capture(dev: WinHost, sub: Subtask) -> dict[str, bytes]:
+    """What the harness keeps right after set-up: the `baseline` files and the evaluators' set-up snapshots."""
+    base = {p: dev.download(p) for p in sub.baseline if dev.exists(p)}
+    return base | capture_setup_snapshots(FinalState(platform="windows", devices={"windows": dev}), sub.evaluate)
 
 
 def check(dev: WinHost, sub: Subtask, baselines: dict[str, bytes]) -> list:
@@ -129,46 +157,102 @@ def test_recycle_bin_records_of_both_versions_and_trashinfo_paths():
         (len(path) + 1).to_bytes(4, "little") + (path + "\0").encode("utf-16-le")
     v1 = (1).to_bytes(8, "little") + (123).to_bytes(8, "little") + bytes(8) + \
         (path + "\0").encode("utf-16-le").ljust(520, b"\0")
-    assert W.recycle_record_path(v2) == path == W.recycle_record_path(v1)
-    assert W.recycle_record_path(b"junk") is None and W.recycle_record_path((9).to_bytes(8, "little") * 4) is None
+    assert RB.recycle_record_path(v2) == path == RB.recycle_record_path(v1)
+    assert RB.recycle_record_path(b"junk") is None and RB.recycle_record_path((9).to_bytes(8, "little") * 4) is None
     info = "[Trash Info]\nPath=/root/.wine/dosdevices/c:/users/user/Documents/my%20notes.txt\nDeletionDate=x\n"
-    assert W.trashinfo_path(info, "/root/.wine") == "C:\\users\\user\\Documents\\my notes.txt"
-    assert W.trashinfo_path("[Trash Info]\nPath=/tmp/a.txt\n", "/root/.wine") == "Z:\\tmp\\a.txt"
-    assert W.trashinfo_path("[Trash Info]\n", "/root/.wine") is None
+    assert RB.trashinfo_path(info, "/root/.wine") == "C:\\users\\user\\Documents\\my notes.txt"
+    assert RB.trashinfo_path("[Trash Info]\nPath=/tmp/a.txt\n", "/root/.wine") == "Z:\\tmp\\a.txt"
+    assert RB.trashinfo_path("[Trash Info]\n", "/root/.wine") is None
 
 
 def test_decode_text_and_numbers_and_listings():
-    assert W.decode_text("é\r\n".encode("utf-16")) == "é\r\n"
-    assert W.decode_text(b"\xef\xbb\xbf42") == "42" and W.decode_text(b"caf\xe9") == "café"
-    assert W.check_number(" 1234\r\n", 1234).passed
-    assert not W.check_number("1234 items", 1234).passed and not W.check_number("", 5).passed
-    assert "an empty file" in W.check_number("", 5).reason
-    ok = W.check_listing("a.txt\r\nB.csv\r\n\r\n", ["A.TXT", "b.csv"], "F")
+    """Answers in text files are read by the one decoder (`text.decode_text`, the platform's code page) and
+    compared as the platform compares names (without case on Windows only)."""
+    cp = WINDOWS.text_codepage
+    assert T.decode_text("é\r\n".encode("utf-16"), cp).text == "é\r\n"
+    assert T.decode_text(b"\xef\xbb\xbf42", cp).text == "42" and T.decode_text(b"caf\xe9", cp).text == "café"
+    assert T.check_number(" 1234\r\n", 1234).passed
+    assert not T.check_number("1234 items", 1234).passed and not T.check_number("", 5).passed
+    assert "an empty file" in T.check_number("", 5).reason
+    ok = T.check_listing(WINDOWS, "a.txt\r\nB.csv\r\n\r\n", ["A.TXT", "b.csv"], "F")
     assert ok.passed
-    bad = W.check_listing("a.txt\r\na.txt\r\nold\r\n", ["a.txt", "b.csv"], "F")
+    bad = T.check_listing(WINDOWS, "a.txt\r\na.txt\r\nold\r\n", ["a.txt", "b.csv"], "F")
     assert not bad.passed and "missing ['b.csv']" in bad.reason and "'old'" in bad.reason and "twice" in bad.reason
+    ubuntu = T.check_listing(PLATFORMS["ubuntu"], "a.txt\nb.csv\n", ["A.TXT", "b.csv"], "F")
+    assert not ubuntu.passed and "missing ['A.TXT']" in ubuntu.reason  # another name where case counts
+    assert T.check_listing(PLATFORMS["ubuntu"], "A.TXT\nb.csv\n", ["A.TXT", "b.csv"], "F").passed
 
 
-def test_check_programs_and_started_by():
-    procs = [{"pid": 4, "ppid": 0, "name": "explorer.exe"}, {"pid": 10, "ppid": 4, "name": "taskmgr.exe"},
-             {"pid": 11, "ppid": 10, "name": "notepad.exe"}, {"pid": 12, "ppid": 4, "name": "notepad.exe"},
-             {"pid": 13, "ppid": 4, "name": "regedit.exe"}]
+def test_a_listing_or_number_that_is_no_text_fails(dev):
+    """Bytes no Windows program writes as text (NUL bytes without a UTF-16 mark) are no answer."""
+    sub = instance("cmd_sum_numbers", numbers="C:\\Users\\user\\Documents\\scores.txt", n1=1, n2=2, n3=3, n4=4,
+                   n5=5, n6=6)
+    base = set_up(dev, sub)
+    dev.upload(sub.output["answer"].value, b"21\x00\r\n")
+    assert "not a text file" in reasons(check(dev, sub, base))
+
+
+def programs(procs, wins) -> WP.Programs:
+    return WP.Programs([dict(p) for p in procs], [dict(w) for w in wins])
+
+
+def test_programs_are_the_processes_set_up_started():
+    procs = [{"pid": 4, "ppid": 0, "name": "explorer.exe", "started": 1}, {"pid": 11, "ppid": 4,
+             "name": "notepad.exe", "started": 5}, {"pid": 12, "ppid": 4, "name": "notepad.exe", "started": 6},
+             {"pid": 13, "ppid": 4, "name": "regedit.exe", "started": 7}]
     wins = [{"title": "a.txt - Notepad", "pid": 11, "visible": True}, {"title": "b.txt - Notepad", "pid": 12,
-                                                                        "visible": False},
+                                                                        "visible": True},
             {"title": "Registry Editor", "pid": 13, "visible": True}]
-    v = W.check_programs(procs, wins, ["b.txt - Notepad"], ["a.txt - Notepad", "Registry Editor"],
-                         {"notepad.exe": 1})
+    setup = programs(procs, wins)
+    ended, running = ["B.TXT - Notepad"], ["a.txt - Notepad", "Registry Editor"]
+    images = {"notepad.exe": 1, "regedit.exe": 1}
+    assert WP.check_programs(setup, programs(procs[:2] + procs[3:], [wins[0], wins[2]]), ended, running,
+                             images).passed
+    hidden = programs(procs, [wins[0], wins[1] | {"visible": False}, wins[2]])
+    v = WP.check_programs(setup, hidden, ended, running, images)
     assert not v.passed and "its window hidden" in v.reason and "2 notepad.exe" in v.reason
-    v = W.check_programs(procs[:3] + procs[4:], [wins[0], wins[2]], ["B.TXT - Notepad"],
-                         ["a.txt - Notepad", "Registry Editor"], {"notepad.exe": 1, "regedit.exe": 1})
-    assert v.passed, v.reason
-    assert W.check_started_by(procs, wins, ["a.txt - Notepad"], "notepad.exe", "taskmgr.exe").passed
-    v = W.check_started_by(procs, wins[1:], ["Registry Editor"], "regedit.exe", "taskmgr.exe")
-    assert not v.passed and "started by explorer.exe" in v.reason
-    assert "no such window" in W.check_started_by(procs, wins, ["x - Notepad"], "notepad.exe", "taskmgr.exe").reason
-    orphan = [p for p in procs if p["pid"] != 10]
-    assert "no longer running" in W.check_started_by(orphan, wins, ["a.txt - Notepad"], "notepad.exe",
-                                                     "taskmgr.exe").reason
+    # every Notepad ended and a.txt opened again: the title and the counts are right, the process is not
+    again = programs([procs[0], procs[3], {"pid": 20, "ppid": 4, "name": "notepad.exe", "started": 9}],
+                     [{"title": "a.txt - Notepad", "pid": 20, "visible": True}, wins[2]])
+    v = WP.check_programs(setup, again, ended, running, images)
+    assert not v.passed and "set-up's process 11 (notepad.exe) is gone" in v.reason and "started again" in v.reason
+    # the same id handed to the new process (Wine reuses ids): its start time tells them apart
+    reused = programs([procs[0], procs[3], procs[1] | {"started": 9}], [wins[0], wins[2]])
+    assert "no longer running" in WP.check_programs(setup, reused, ended, running, images).reason
+    # the ended program's title shown by another process
+    other = programs(procs[:2] + procs[3:] + [{"pid": 30, "ppid": 4, "name": "wordpad.exe", "started": 9}],
+                     [wins[0], wins[2], {"title": "b.txt - Notepad", "pid": 30, "visible": True}])
+    assert "open again, of process 30" in WP.check_programs(setup, other, ended, running, images).reason
+    with pytest.raises(InfrastructureError, match="no window was titled"):
+        WP.check_programs(programs(procs, wins[:1]), setup, ended, running, images)
+
+
+def test_started_by_the_task_manager_set_up_started():
+    taskmgr = {"pid": 8, "ppid": 1, "name": "taskmgr.exe", "started": 3, "path": "C:\\windows\\system32\\taskmgr.exe"}
+    setup = programs([taskmgr], [{"title": "Task Manager", "pid": 8, "visible": True}])
+    child = {"pid": 9, "ppid": 8, "name": "notepad.exe", "started": 5}
+    win = {"title": "a.txt - Notepad", "pid": 9, "visible": True}
+    assert WP.check_started_by(setup, programs([taskmgr, child], [win]), ["a.txt - Notepad"], "notepad.exe",
+                               "taskmgr.exe").passed
+    # a program named taskmgr.exe that set-up did not start (a renamed copy of another program)
+    fake = {"pid": 7, "ppid": 1, "name": "taskmgr.exe", "started": 4, "path": "C:\\temp\\tm\\taskmgr.exe"}
+    v = WP.check_started_by(setup, programs([taskmgr, fake, child | {"ppid": 7}], [win]), ["a.txt - Notepad"],
+                            "notepad.exe", "taskmgr.exe")
+    assert not v.passed and "that set-up did not start" in v.reason and "C:\\temp\\tm" in v.reason
+    # set-up's Task Manager ended and its id reused by the program that started Notepad
+    v = WP.check_started_by(setup, programs([taskmgr | {"started": 4}, child], [win]), ["a.txt - Notepad"],
+                            "notepad.exe", "taskmgr.exe")
+    assert not v.passed
+    # a Notepad that was already running at set-up
+    early = programs([taskmgr, child], [{"title": "Task Manager", "pid": 8, "visible": True}, win])
+    v = WP.check_started_by(early, programs([taskmgr, child], [win]), ["a.txt - Notepad"], "notepad.exe",
+                            "taskmgr.exe")
+    assert not v.passed and "already running at set-up" in v.reason
+    v = WP.check_started_by(setup, programs([taskmgr, child | {"ppid": 3}, {"pid": 3, "ppid": 1, "name": "cmd.exe"}],
+                                            [win]), ["a.txt - Notepad"], "notepad.exe", "taskmgr.exe")
+    assert "started by cmd.exe" in v.reason
+    assert "no such window" in WP.check_started_by(setup, programs([taskmgr], []), ["x - Notepad"], "notepad.exe",
+                                                   "taskmgr.exe").reason
 
 
 def test_the_probe_reads_files_folders_links_and_hard_links(tmp_path):
@@ -179,8 +263,8 @@ def test_the_probe_reads_files_folders_links_and_hard_links(tmp_path):
     tree = PROBE_NS["tree"](str(tmp_path / "d"))
     assert tree["f.txt"]["sha256"] == hashlib.sha256(b"abc").hexdigest() and tree["f.txt"]["nlink"] == 2
     assert tree["e"]["dir"] and tree["h.txt"]["link"] and PROBE_NS["entry"](str(tmp_path / "x")) == {"exists": False}
-    assert "hard link" in W.check_regular_file(tree["g.txt"], None, "copy")
-    assert "a link" in W.check_regular_file(tree["h.txt"], None, "copy")
+    assert "hard link" in F.check_file(WINDOWS, P.as_entry(tree["g.txt"]), None, "copy")
+    assert "a link" in F.check_file(WINDOWS, P.as_entry(tree["h.txt"]), None, "copy")
 
 
 def test_the_probe_script_runs_and_writes_its_answer(tmp_path):
@@ -188,7 +272,7 @@ def test_the_probe_script_runs_and_writes_its_answer(tmp_path):
     import subprocess
     import sys
 
-    (tmp_path / "probe.py").write_text(W.PROBE)
+    (tmp_path / "probe.py").write_text(P.PROBE)
     (tmp_path / "a").mkdir()
     (tmp_path / "a" / "x.txt").write_text("x")
     (tmp_path / "req.json").write_text(json.dumps({"entries": [str(tmp_path / "a" / "x.txt")],
@@ -253,9 +337,9 @@ def test_trash_file(dev, record):
     budget = dev.host(doomed).parent / "budget.txt"
     assert "it still there" in reasons(check(dev, sub, base))
     os.remove(dev.host(doomed))  # negative: deleted for good
-    assert "Recycle Bin entries none" in reasons(check(dev, sub, base))
+    assert "trash entries none" in reasons(check(dev, sub, base))
     trash_entry(dev, "C:\\Users\\user\\Downloads\\other.txt", original, record)  # another file's entry
-    assert "Recycle Bin entries" in reasons(check(dev, sub, base))
+    assert "trash entries" in reasons(check(dev, sub, base))
     trash_entry(dev, doomed.upper(), b"", record)  # an entry naming it, holding other data
     assert "holds other content" in reasons(check(dev, sub, base))
     trash_entry(dev, doomed, original, record)  # Explorer's delete to the bin
@@ -269,7 +353,7 @@ def test_trash_file_hand_moved_data_without_a_record_fails(dev):
     base = set_up(dev, sub)
     os.remove(dev.host(sub.input["doomed"].value))
     dev.trash["xdg"].append({"name": "junk.trashinfo", "info": "no path here", "data": {"exists": True}})
-    assert "Recycle Bin entries none" in reasons(check(dev, sub, base))
+    assert "trash entries none" in reasons(check(dev, sub, base))
 
 
 # -- Wine's file manager --------------------------------------------------------------------------------------------
@@ -283,6 +367,12 @@ def test_copy_to_drive(dev):
     copy.parent.mkdir(parents=True)
     shutil.copy(src, copy)
     assert passed(check(dev, sub, base)) and passed(check(dev, sub, {}))
+    dev.attrs[copy] = HIDDEN  # the copy made, but hidden
+    assert "copy is hidden" in reasons(check(dev, sub, base))
+    dev.attrs.pop(copy)
+    dev.attrs[src] = HIDDEN | SYSTEM  # the original hidden after the copy
+    assert "original is hidden" in reasons(check(dev, sub, base))
+    dev.attrs.pop(src)
     copy.write_bytes(b"")  # negative: an empty file of that name
     assert "copy holds other content" in reasons(check(dev, sub, base))
     os.remove(copy)
@@ -294,6 +384,9 @@ def test_copy_to_drive(dev):
     shutil.copy(copy, src)
     src.write_bytes(b"changed")
     assert "original changed" in reasons(check(dev, sub, base))
+    os.remove(src)
+    os.symlink(copy, src)  # moved, and a link to it left where the original was
+    assert "original is a link" in reasons(check(dev, sub, base))
 
 
 def test_move_file(dev):
@@ -338,6 +431,116 @@ def test_sort_by_type(dev):
     assert "also holds ['stray.txt']" in reasons(check(dev, sub, base))
 
 
+# -- hidden and system entries count ----------------------------------------------------------------------------
+EXPLORER_INI = "\r\n[.ShellClassInfo]\r\nLocalizedResourceName=@%SystemRoot%\\system32\\shell32.dll,-21770\r\n".encode("utf-16")
+
+
+def sorted_inbox(dev: WinHost) -> tuple[Subtask, dict, Path]:
+    """winefile_sort_by_type set up and sorted as the file manager does."""
+    sub = instance("winefile_sort_by_type", folder="C:\\Users\\user\\Documents\\inbox", ext=".csv", sub="by_type")
+    folder = dev.host(sub.input["folder"].value)
+    folder.mkdir(parents=True)
+    for n in ("alpha", "beta", "gamma"):
+        (folder / f"{n}.csv").write_bytes(f"{n} of .csv\r\n".encode())
+    for e in (".png", ".txt", ".pdf"):
+        (folder / f"other{e}").write_bytes(f"other {e}\r\n".encode())
+    base = capture(dev, sub)
+    (folder / "by_type").mkdir()
+    for n in ("alpha", "beta", "gamma"):
+        os.rename(folder / f"{n}.csv", folder / "by_type" / f"{n}.csv")
+    assert passed(check(dev, sub, base))
+    return sub, base, folder
+
+
+def test_sorting_counts_hidden_leftovers_and_extras(dev):
+    sub, base, folder = sorted_inbox(dev)
+    shutil.copy(folder / "by_type" / "alpha.csv", folder / "alpha.csv")  # the original kept, hidden
+    dev.attrs[folder / "alpha.csv"] = HIDDEN
+    assert "alpha.csv (hidden) still in the folder" in reasons(check(dev, sub, base))
+    os.rename(folder / "alpha.csv", folder / "~alpha.tmp")  # kept under another name, hidden and system
+    dev.attrs[folder / "~alpha.tmp"] = HIDDEN | SYSTEM
+    assert "a copy of alpha.csv left at ~alpha.tmp (hidden, system)" in reasons(check(dev, sub, base))
+    (folder / "~alpha.tmp").unlink()
+    (folder / "by_type" / "notes.txt").write_bytes(b"x")  # a hidden extra file in the sorted folder
+    dev.attrs[folder / "by_type" / "notes.txt"] = HIDDEN
+    assert "by_type also holds ['notes.txt (hidden)']" in reasons(check(dev, sub, base))
+    (folder / "by_type" / "notes.txt").unlink()
+    dev.attrs[folder / "by_type" / "beta.csv"] = HIDDEN  # a moved file hidden in its new place
+    assert "beta.csv in by_type is hidden" in reasons(check(dev, sub, base))
+
+
+def test_only_explorers_own_desktop_ini_is_passed_over(dev):
+    sub, base, folder = sorted_inbox(dev)
+    ini = folder / "by_type" / "desktop.ini"
+    ini.write_bytes(EXPLORER_INI)
+    dev.attrs[ini] = HIDDEN | SYSTEM
+    assert passed(check(dev, sub, base)), reasons(check(dev, sub, base))  # what Explorer writes there
+    dev.attrs[ini] = HIDDEN  # not marked system: not Explorer's
+    assert "also holds ['desktop.ini (hidden)']" in reasons(check(dev, sub, base))
+    ini.write_bytes(b"alpha of .csv\r\n")  # a moved file's bytes under Explorer's name and marks
+    dev.attrs[ini] = HIDDEN | SYSTEM
+    assert "desktop.ini (hidden, system)" in reasons(check(dev, sub, base))
+    ini.write_bytes(b"\x00" * 10)
+    (folder / "by_type" / "Thumbs.db").write_bytes(b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1" + bytes(504))
+    dev.attrs[folder / "by_type" / "Thumbs.db"] = HIDDEN | SYSTEM
+    ini.unlink()
+    assert passed(check(dev, sub, base))
+
+
+def test_moves_and_trash_count_hidden_originals_and_copies(dev):
+    sub = instance("explorer_rename_file", source_file="C:\\Users\\user\\Desktop\\ideas.txt",
+                   new_stem="final_version")
+    base = set_up(dev, sub)
+    src, dest = dev.host(sub.input["source_file"].value), dev.host(sub.output["renamed_file"].value)
+    shutil.copy(src, dest)  # renamed, and the original kept hidden
+    dev.attrs[src] = HIDDEN
+    assert "original still at its old place (a file of 94 bytes (hidden))" in reasons(check(dev, sub, base))
+    os.rename(src, src.parent / ".ideas.bak")  # ... or kept as a hidden copy under another name
+    dev.attrs[src.parent / ".ideas.bak"] = HIDDEN
+    assert "a copy of ideas.txt left at .ideas.bak (hidden)" in reasons(check(dev, sub, base))
+    (src.parent / "stash").mkdir()
+    os.rename(src.parent / ".ideas.bak", src.parent / "stash" / "x.txt")  # ... or in a sub-folder of the old one
+    assert "a copy of ideas.txt left at stash\\x.txt" in reasons(check(dev, sub, base))
+    (src.parent / "stash" / "x.txt").unlink()
+    assert passed(check(dev, sub, base))
+
+    sub = instance("explorer_trash_file", doomed="C:\\Users\\user\\Downloads\\old_invoice.txt", token="owl-1")
+    base = set_up(dev, sub)
+    doomed = dev.host(sub.input["doomed"].value)
+    original = doomed.read_bytes()
+    trash_entry(dev, sub.input["doomed"].value, original)
+    dev.attrs[doomed] = HIDDEN  # "deleted": an entry in the bin, the file still there, hidden
+    assert "it still there (a file of" in reasons(check(dev, sub, base))
+    os.rename(doomed, doomed.parent / "old_invoice.tmp")
+    assert "a copy of old_invoice.txt left at old_invoice.tmp" in reasons(check(dev, sub, base))
+
+
+def test_exact_folders_count_hidden_entries(dev):
+    sub = instance("cmd_rename_extension", folder="C:\\Users\\user\\Documents\\logs", old_ext=".log",
+                   new_ext=".txt", token="owl-5")
+    base = set_up(dev, sub)
+    folder = dev.host(sub.input["folder"].value)
+    for n in ("alpha", "beta", "gamma"):
+        shutil.copy(folder / f"{n}.log", folder / f"{n}.txt")
+        dev.attrs[folder / f"{n}.log"] = HIDDEN  # renamed copies; the old files kept, hidden
+    assert "alpha.log (hidden) still there" in reasons(check(dev, sub, base))
+    sub = instance("cmd_copy_tree", source="C:\\Users\\user\\Documents\\clients",
+                   target="C:\\Users\\user\\Desktop\\skeleton", a="finance", b="q1", c="scans")
+    base = set_up(dev, sub)
+    src, dst = dev.host(sub.input["source"].value), dev.host(sub.input["target"].value)
+    for d in ("finance/q1/final", "scans/old"):
+        (src / d).mkdir(parents=True, exist_ok=True)
+        (dst / d).mkdir(parents=True)
+    assert passed(check(dev, sub, base))
+    (dst / "scans" / "list.txt").write_bytes(b"scans\r\n")  # a file copied too, hidden
+    dev.attrs[dst / "scans" / "list.txt"] = HIDDEN
+    assert "also ['scans\\\\list.txt (hidden)']" in reasons(check(dev, sub, base))
+    (dst / "scans" / "list.txt").unlink()
+    (src / "scans" / "notes.tmp").write_bytes(b"x")  # something added to the source, hidden
+    dev.attrs[src / "scans" / "notes.tmp"] = HIDDEN
+    assert "notes.tmp (hidden)" in reasons(check(dev, sub, base))
+
+
 # -- Command Prompt ---------------------------------------------------------------------------------------------
 def test_run_batch(dev):
     sub = instance("cmd_run_batch", bat="C:\\Users\\user\\Desktop\\setup_folders.bat", a="src", b="build",
@@ -363,21 +566,42 @@ def test_run_batch(dev):
 
 def test_list_files(dev):
     sub = instance("cmd_list_files", folder="C:\\Users\\user\\Documents\\invoices", stem="owl", n=123)
-    set_up(dev, sub)
+    base = set_up(dev, sub)
     listing = sub.output["listing"].value
+    folder = dev.host(sub.input["folder"].value)
     assert listing == "C:\\Users\\user\\Documents\\invoices_files.txt"
-    assert "no file" in reasons(check(dev, sub, {}))
+    assert "no file" in reasons(check(dev, sub, base))
     dev.upload(listing, b"IMG_123.png\r\nnotes_owl.md\r\nowl_1.txt\r\nowl_2.csv\r\n")  # dir /b /a-d
-    assert passed(check(dev, sub, {}))
+    assert passed(check(dev, sub, base))
     dev.upload(listing, "IMG_123.png\r\nnotes_owl.md\r\nowl_1.txt\r\nowl_2.csv\r\n".encode("utf-16"))
-    assert passed(check(dev, sub, {}))  # a UTF-16 listing (cmd /u) reads the same
+    assert passed(check(dev, sub, base))  # a UTF-16 listing (cmd /u) reads the same
+    with pytest.raises(InfrastructureError, match="no set-up snapshot"):
+        check(dev, sub, {})  # the harness always takes it; without it nothing can be said
     dev.upload(listing, b"IMG_123.png\r\nnotes_owl.md\r\nold\r\nowl_1.txt\r\nowl_2.csv\r\n")  # negative: dir /b
-    assert "other lines ['old']" in reasons(check(dev, sub, {}))
+    assert "other lines ['old']" in reasons(check(dev, sub, base))
     dev.upload(listing, b"owl_1.txt\r\n")  # negative: only the .txt files
-    assert "missing" in reasons(check(dev, sub, {}))
+    assert "missing" in reasons(check(dev, sub, base))
     dev.upload(listing, b" Volume in drive C has no label.\r\n Directory of C:\\x\r\n"
                b"11/24/2026  5:42 AM  3 owl_1.txt\r\n")
-    assert "missing" in reasons(check(dev, sub, {}))  # negative: the full dir output
+    assert "missing" in reasons(check(dev, sub, base))  # negative: the full dir output
+
+
+@pytest.mark.parametrize("change,reason", [
+    (lambda d, f: (f / "owl_2.csv").unlink(), "owl_2.csv gone"),
+    (lambda d, f: (f / "owl_1.txt").write_bytes(b"edited"), "owl_1.txt changed (content)"),
+    (lambda d, f: d.attrs.__setitem__(f / "notes_owl.md", HIDDEN), "notes_owl.md changed (hidden)"),
+    (lambda d, f: ((f / "listing.tmp").write_bytes(b"x"), d.attrs.__setitem__(f / "listing.tmp", HIDDEN)),
+     "added ['listing.tmp (hidden)']"),
+    (lambda d, f: (f / "old" / "hidden_owl.txt").unlink(), "hidden_owl.txt gone"),
+])
+def test_list_files_leaves_the_listed_folder_as_it_was(dev, change, reason):
+    """The listing is right, but the listed folder was changed on the way (class: what a task must not change)."""
+    sub = instance("cmd_list_files", folder="C:\\Users\\user\\Documents\\invoices", stem="owl", n=123)
+    base = set_up(dev, sub)
+    dev.upload(sub.output["listing"].value, b"IMG_123.png\r\nnotes_owl.md\r\nowl_1.txt\r\nowl_2.csv\r\n")
+    assert passed(check(dev, sub, base))
+    change(dev, dev.host(sub.input["folder"].value))
+    assert reason in reasons(check(dev, sub, base))
 
 
 def test_sum_numbers(dev):
@@ -398,6 +622,31 @@ def test_sum_numbers(dev):
     dev.upload(answer, b"1398\r\n")
     dev.upload(sub.input["numbers"].value, b"")  # negative: right sum, the numbers file emptied
     assert "scores.txt: it holds other content" in reasons(check(dev, sub, base))
+
+
+def test_count_files_leaves_the_counted_folder_as_it_was(dev):
+    """powershell_count_files (real Windows only; its evaluator runs here): the number PowerShell writes, and the
+    folder whose files were counted as the set-up made it."""
+    sub = instance("powershell_count_files", folder="C:\\Users\\user\\Desktop\\scans", count=4, name="count")
+    folder = dev.host(sub.input["folder"].value)
+    (folder / "archive" / "2023").mkdir(parents=True)
+    for i in range(1, 5):  # what the set-up command makes
+        (folder / f"item_{i}.txt").write_bytes(f"item {i}\r\n".encode())
+    (folder / "archive" / "old_1.txt").write_bytes(b"old\r\n")
+    (folder / "archive" / "2023" / "older.txt").write_bytes(b"older\r\n")
+    base = capture(dev, sub)
+    out = sub.output["out"].value
+    assert "no file" in reasons(check(dev, sub, base))
+    dev.upload(out, "4\r\n".encode("utf-16"))  # Out-File: UTF-16 LE with a byte order mark
+    assert passed(check(dev, sub, base)), reasons(check(dev, sub, base))
+    dev.upload(out, b"6\r\n")  # negative: the sub-folders' files counted too
+    assert "just the number 4" in reasons(check(dev, sub, base))
+    dev.upload(out, b"4")
+    (folder / "item_2.txt").unlink()  # negative: the right number, then a counted file deleted
+    assert "item_2.txt gone" in reasons(check(dev, sub, base))
+    (folder / "item_2.txt").write_bytes(b"item 2\r\n")
+    dev.attrs[folder / "archive" / "2023" / "older.txt"] = HIDDEN
+    assert "older.txt changed (hidden)" in reasons(check(dev, sub, base))
 
 
 def test_rename_extension(dev):
@@ -442,33 +691,76 @@ def test_copy_tree(dev):
 def test_end_program(dev):
     sub = instance("taskmgr_end_program", target_doc="C:\\Users\\user\\Documents\\budget.txt",
                    keep_doc="C:\\Users\\user\\Documents\\plans.txt")
-    dev.processes = [{"pid": 5, "ppid": 1, "name": "notepad.exe"}, {"pid": 6, "ppid": 1, "name": "notepad.exe"},
-                     {"pid": 7, "ppid": 1, "name": "regedit.exe"}, {"pid": 8, "ppid": 1, "name": "taskmgr.exe"}]
+    notepad_a, notepad_b = {"pid": 5, "ppid": 1, "name": "notepad.exe", "started": 10}, \
+        {"pid": 6, "ppid": 1, "name": "notepad.exe", "started": 11}
+    regedit, taskmgr = {"pid": 7, "ppid": 1, "name": "regedit.exe", "started": 12}, \
+        {"pid": 8, "ppid": 1, "name": "taskmgr.exe", "started": 13}
+    dev.processes = [notepad_a, notepad_b, regedit, taskmgr]
     target = {"title": "budget.txt - Notepad", "pid": 5, "visible": True}
     keep = {"title": "plans.txt - Notepad", "pid": 6, "visible": True}
     reg = {"title": "Registry Editor", "pid": 7, "visible": True}
     dev.windows = [target, keep, reg]
-    assert "'budget.txt - Notepad' still running" in reasons(check(dev, sub, {}))
-    target["visible"] = False  # negative: its window hidden
-    assert "its window hidden" in reasons(check(dev, sub, {}))
-    dev.windows, dev.processes = [keep, reg], dev.processes[1:]  # End Task
-    assert passed(check(dev, sub, {}))
-    dev.windows, dev.processes = [target | {"visible": True}, reg], [dev.processes[0] | {"pid": 5}] + dev.processes[1:]
-    assert "'plans.txt - Notepad' no longer running" in reasons(check(dev, sub, {}))  # negative: the wrong one
-    dev.windows, dev.processes = [reg], dev.processes[1:]  # negative: every Notepad ended
-    assert "0 notepad.exe" in reasons(check(dev, sub, {}))
+    base = set_up(dev, sub)  # the processes and windows right after set-up
+    assert "'budget.txt - Notepad' still running" in reasons(check(dev, sub, base))
+    dev.windows = [target | {"visible": False}, keep, reg]  # negative: its window hidden
+    assert "its window hidden" in reasons(check(dev, sub, base))
+    dev.windows, dev.processes = [keep, reg], [notepad_b, regedit, taskmgr]  # End Task
+    assert passed(check(dev, sub, base))
+    dev.windows, dev.processes = [target, reg], [notepad_a, regedit, taskmgr]  # negative: the other one ended
+    assert "'plans.txt - Notepad' no longer running" in reasons(check(dev, sub, base))
+    dev.windows, dev.processes = [reg], [regedit, taskmgr]  # negative: every Notepad ended
+    assert "0 notepad.exe" in reasons(check(dev, sub, base))
+    # negative: every Notepad ended and plans.txt opened again — right titles, right counts, another process
+    dev.windows = [keep | {"pid": 9}, reg]
+    dev.processes = [{"pid": 9, "ppid": 1, "name": "notepad.exe", "started": 20}, regedit, taskmgr]
+    assert "started again" in reasons(check(dev, sub, base))
+    dev.processes = [notepad_b | {"started": 20}, regedit, taskmgr]  # ... given the old id again (Wine reuses ids)
+    dev.windows = [keep, reg]
+    assert "'plans.txt - Notepad' no longer running" in reasons(check(dev, sub, base))
+
+
+def test_the_harness_keeps_set_up_snapshots_for_the_evaluation(dev):
+    """capture_baselines takes the evaluators' set-up snapshots beside the file baselines, and evaluate_subtasks
+    hands them to the subtask: the program that must keep running is judged against the process set-up started."""
+    from jarvis_pytest.plugin.evaluation import capture_baselines, evaluate_subtasks
+
+    sub = instance("taskmgr_end_program", target_doc="C:\\Users\\user\\Documents\\budget.txt",
+                   keep_doc="C:\\Users\\user\\Documents\\plans.txt")
+    regedit = {"pid": 7, "ppid": 1, "name": "regedit.exe", "started": 12}
+    keep = {"pid": 6, "ppid": 1, "name": "notepad.exe", "started": 11}
+    dev.processes = [{"pid": 5, "ppid": 1, "name": "notepad.exe", "started": 10}, keep, regedit]
+    dev.windows = [{"title": "budget.txt - Notepad", "pid": 5, "visible": True},
+                   {"title": "plans.txt - Notepad", "pid": 6, "visible": True},
+                   {"title": "Registry Editor", "pid": 7, "visible": True}]
+    baselines = capture_baselines([sub], {"windows": dev})
+    assert any(key[1].startswith("<set-up snapshot>") for key in baselines)
+    dev.processes, dev.windows = [keep, regedit], dev.windows[1:]  # End Task
+    (verdict,) = evaluate_subtasks([sub], {"windows": dev}, None, baselines)
+    assert verdict.passed, verdict.evaluators
+    dev.processes = [keep | {"pid": 9, "started": 20}, regedit]  # every Notepad ended, plans.txt opened again
+    dev.windows = [{"title": "plans.txt - Notepad", "pid": 9, "visible": True}, dev.windows[1]]
+    (verdict,) = evaluate_subtasks([sub], {"windows": dev}, None, baselines)
+    assert not verdict.passed and "started again" in verdict.evaluators[0].reason
 
 
 def test_new_task(dev):
     sub = instance("taskmgr_new_task", doc="C:\\Users\\user\\Desktop\\readme.txt", token="owl-3")
+    taskmgr = {"pid": 8, "ppid": 1, "name": "taskmgr.exe", "started": 1}
+    dev.processes, dev.windows = [taskmgr], [{"title": "Task Manager", "pid": 8, "visible": True}]
     base = set_up(dev, sub)
-    dev.processes = [{"pid": 8, "ppid": 1, "name": "taskmgr.exe"}, {"pid": 9, "ppid": 8, "name": "notepad.exe"},
-                     {"pid": 3, "ppid": 2, "name": "cmd.exe"}, {"pid": 10, "ppid": 3, "name": "notepad.exe"}]
+    dev.processes = [taskmgr, {"pid": 9, "ppid": 8, "name": "notepad.exe", "started": 2},
+                     {"pid": 3, "ppid": 2, "name": "cmd.exe", "started": 3},
+                     {"pid": 10, "ppid": 3, "name": "notepad.exe", "started": 4},
+                     {"pid": 11, "ppid": 1, "name": "taskmgr.exe", "started": 5, "path": "C:\\temp\\tm\\taskmgr.exe"},
+                     {"pid": 12, "ppid": 11, "name": "notepad.exe", "started": 6}]
+    dev.windows = []
     assert "no such window" in reasons(check(dev, sub, base))
     dev.windows = [{"title": "readme.txt - Notepad", "pid": 10, "visible": True}]  # negative: from a prompt
     assert "started by cmd.exe" in reasons(check(dev, sub, base))
     dev.windows = [{"title": "Untitled - Notepad", "pid": 9, "visible": True}]  # negative: without the file
     assert "no such window" in reasons(check(dev, sub, base))
+    dev.windows = [{"title": "readme.txt - Notepad", "pid": 12, "visible": True}]  # negative: a fake taskmgr.exe
+    assert "that set-up did not start" in reasons(check(dev, sub, base))
     dev.windows = [{"title": "readme.txt - Notepad", "pid": 9, "visible": True}]  # Task Manager's New Task
     assert passed(check(dev, sub, base))
     dev.windows = [{"title": "readme - Notepad", "pid": 9, "visible": True}]  # Windows with extensions hidden
@@ -501,12 +793,12 @@ def test_probe_round_trip_cleans_up_and_reports_failures(tmp_path):
     target = tmp_path / "files"
     (target / "sub").mkdir(parents=True)
     (target / "a.txt").write_bytes(b"abc")
-    out = W.probe(state, entries=[str(target / "a.txt")], trees=[str(target)])
+    out = P.probe(state, entries=[str(target / "a.txt")], trees=[str(target)])
     assert out["entries"][str(target / "a.txt")]["sha256"] == hashlib.sha256(b"abc").hexdigest()
     assert set(out["trees"][str(target)]) == {"a.txt", "sub"}
-    assert dev.commands[0].startswith(f'"{W.PYTHON}" -I "{W.PROBE_DIR}\\') and dev.commands[1].startswith("rmdir")
-    probe_root = dev.host(W.PROBE_DIR)
+    assert dev.commands[0].startswith(f'"{P.PYTHON}" -I "{P.PROBE_DIR}\\') and dev.commands[1].startswith("rmdir")
+    probe_root = dev.host(P.PROBE_DIR)
     assert not any(probe_root.iterdir())  # its folder removed
     with pytest.raises(InfrastructureError, match="probe failed on the device"):
-        W.probe(state, processes=True)  # no Windows API on this host: the probe's own error, reported
+        P.probe(state, processes=True)  # no Windows API on this host: the probe's own error, reported
     assert not any(probe_root.iterdir())

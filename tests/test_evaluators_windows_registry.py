@@ -23,6 +23,7 @@ from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.evaluators import get_evaluator
 from jarvis_pytest.evaluators.browser import bookmarks_checksum
 from jarvis_pytest.evaluators.state import FinalState
+from jarvis_pytest.evaluators import windows_registry as wr
 from jarvis_pytest.evaluators.windows_registry import (Branch, RegKey, RegValue, branch_changes, check_edge_favorite,
                                                        check_reg_export, check_text_value, decode_windows_text,
                                                        norm_key, parse_reg_file, parse_reg_query, typed_value)
@@ -523,7 +524,23 @@ def test_double_click_speed_is_the_string_windows_reads():
     assert "SwapMouseButtons changed from REG_SZ '0' to REG_SZ '1'" in reasons(run_evaluators(sub, dev, base))
 
 
-def test_minesweeper_custom_field_keeps_the_best_times():
+def probing(monkeypatch, procs: list[dict], windows: list[dict] | None = None, exits_after: int | None = None):
+    """Make the Windows probe answer with `procs` and `windows` (a process list and its windows); with
+    `exits_after`, the processes are gone from that many probes on. Returns how many probes were made."""
+    calls = []
+
+    def fake(state, **request):
+        assert request.get("processes") and request.get("windows"), request
+        calls.append(1)
+        gone = exits_after is not None and len(calls) > exits_after
+        return {"processes": [] if gone else procs, "windows": [] if gone else (windows or [])}
+
+    monkeypatch.setattr(wr, "probe", fake)
+    return calls
+
+
+def test_minesweeper_custom_field_keeps_the_best_times(monkeypatch):
+    probing(monkeypatch, [{"pid": 32, "ppid": 8, "name": "explorer.exe"}])  # Minesweeper has exited
     sub = instance("minesweeper_custom_field", rows=16, cols=30, mines=60)
     mine = r"HKEY_CURRENT_USER\Software\Microsoft\WinMine"
     dev = FakeWindows(setup_registry(sub), wine=True)
@@ -541,6 +558,28 @@ def test_minesweeper_custom_field_keeps_the_best_times():
     assert "Time1 changed from REG_DWORD 41" in reasons(run_evaluators(sub, dev, base))
 
 
+def test_minesweeper_must_have_exited_before_its_settings_count(monkeypatch):
+    """The registry already right while winemine still runs with another field (it writes that one on exit):
+    fails, and says so; a winemine that shows no window more is finishing its exit and is waited for."""
+    sub = instance("minesweeper_custom_field", rows=16, cols=30, mines=60)
+    mine = r"HKEY_CURRENT_USER\Software\Microsoft\WinMine"
+    dev = FakeWindows(setup_registry(sub), wine=True)
+    base = {sub.baseline[0]: snapshot(dev, mine)}
+    for name, value in [("Difficulty", 3), ("Height", 16), ("Width", 30), ("Mines", 60)]:
+        dev.set(mine, name, "REG_DWORD", value)  # `reg add` while the game runs
+    game = {"pid": 52, "ppid": 8, "name": "winemine.exe"}
+    probing(monkeypatch, [game], [{"title": "WineMine", "pid": 52, "visible": True}])
+    found = reasons(run_evaluators(sub, dev, base))
+    assert "winemine.exe still running (pid 52)" in found and "writes the values it holds over" in found, found
+    assert "and winemine.exe exited" in found
+    monkeypatch.setattr(wr, "EXIT_GRACE", 0.2)
+    probing(monkeypatch, [game])  # no window, and it never goes: still running after the grace
+    assert "still running" in reasons(run_evaluators(sub, dev, base))
+    monkeypatch.setattr(wr, "EXIT_GRACE", 5.0)
+    calls = probing(monkeypatch, [game], exits_after=1)  # no window, gone at the second look
+    assert passed(run_evaluators(sub, dev, base)) and len(calls) == 2
+
+
 # -- text files (PowerShell) ----------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("data", [
     "7\r\n".encode("utf-16-le"), b"\xff\xfe" + "7\r\n".encode("utf-16-le"), b"7\r\n", b"\xef\xbb\xbf7\n", b"  7  ",
@@ -555,32 +594,6 @@ def test_text_value_in_every_encoding_powershell_writes(data):
 def test_decode_windows_text():
     assert decode_windows_text(b"\xfe\xff\x00A") == ("A", "UTF-16 BE")
     assert decode_windows_text("é".encode("cp1252")) == ("é", "ANSI")
-
-
-@pytest.fixture
-def count_task():
-    sub = instance("powershell_count_files", folder=r"C:\Users\user\Desktop\scans", count=5, name="file_count")
-    dev = FakeWindows()
-    folder = r"C:\Users\user\Desktop\scans"
-    for i in range(1, 6):
-        dev.put(rf"{folder}\item_{i}.txt", f"item {i}\r\n".encode())
-    dev.put(rf"{folder}\archive\old_1.txt", b"old\r\n")
-    dev.put(rf"{folder}\archive\old_2.txt", b"old\r\n")
-    base = {p: dev.download(p) for p in sub.baseline}
-    return sub, dev, base, sub.output["out"].value
-
-
-def test_count_files(count_task):
-    sub, dev, base, out = count_task
-    assert "no file at" in reasons(run_evaluators(sub, dev, base))
-    dev.put(out, b"\xff\xfe" + "5\r\n".encode("utf-16-le"))  # (Get-ChildItem -File).Count | Out-File
-    assert passed(run_evaluators(sub, dev, base))
-    for data, needle in [(b"", "''"), (b"\xff\xfe" + "8\r\n".encode("utf-16-le"), "'8'"), (b"6\r\n", "'6'")]:
-        dev.put(out, data)
-        assert needle in reasons(run_evaluators(sub, dev, base))
-    dev.put(out, b"5\r\n")
-    del dev.files[WIN.normalise(r"C:\Users\user\Desktop\scans\archive\old_1.txt")]
-    assert "damage" in reasons(run_evaluators(sub, dev, base))
 
 
 def test_file_hash():

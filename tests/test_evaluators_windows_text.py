@@ -1,5 +1,5 @@
-"""The Windows text and RTF evaluators (`jarvis_pytest/evaluators/windows_text.py`) and their generators (`rtf`,
-`encoded_text`), run on bytes with no container.
+"""The plain-text, Notepad and RTF evaluators (`jarvis_pytest/evaluators/text.py`, `rtf.py`)
+and their generators (`rtf`, `encoded_text`), run on bytes with no container.
 
 Unit tests of the pieces (encoding detection, line breaks, the RTF reader on what Wine's WordPad writes), then
 the ten Notepad and WordPad templates of `tasks/windows/` end to end on a host folder standing in for the device:
@@ -20,11 +20,15 @@ from pathlib import Path
 
 import pytest
 
-from jarvis_pytest.errors import ConfigError
+from jarvis_pytest.errors import ConfigError, InfrastructureError
 from jarvis_pytest.evaluators import get_evaluator
 from jarvis_pytest.evaluators.state import FinalState
-from jarvis_pytest.evaluators.windows_text import (compare_text, decode_text, describe_breaks, is_rtf, line_breaks,
-                                                   paragraph_format, parse_date, parse_rtf, split_lines)
+from jarvis_pytest.devices.base import CommandResult
+from jarvis_pytest.devices.platforms import PLATFORMS
+from jarvis_pytest.evaluators.dates import parse_date
+from jarvis_pytest.evaluators.registry import Verdict
+from jarvis_pytest.evaluators.rtf import is_rtf, paragraph_format, parse_rtf
+from jarvis_pytest.evaluators.text import compare_text, decode_text, describe_breaks, line_breaks, split_lines
 from jarvis_pytest.generators import generate
 from jarvis_pytest.tasks.instances import materialise, sample_inputs
 from jarvis_pytest.tasks.model import Subtask, TaskTemplate
@@ -55,11 +59,23 @@ def test_decode_text_tells_the_encoding_from_the_bytes(data, text, encoding):
 @pytest.mark.parametrize("data, needle", [
     (b"a\x00b", "NUL bytes"),
     (b"\xff\xfe\x00\xd8", "UTF-16 LE"),            # a lone surrogate after the BOM
-    (b"abc\x81\x8d", "neither UTF-8 nor Windows-1252"),
+    (b"abc\x81\x8d", "neither UTF-8 nor cp1252"),
 ])
 def test_decode_text_refuses_what_is_no_text(data, needle):
     with pytest.raises(ValueError, match=needle):
         decode_text(data)
+
+
+def test_the_code_page_of_plain_text_is_the_platforms():
+    """One decoder for every platform; where 8-bit text that is not UTF-8 is ANSI comes from `PlatformSpec`."""
+    assert decode_text("Café".encode("cp1252"), PLATFORMS["windows"].text_codepage).encoding == "ANSI"
+    with pytest.raises(ValueError, match="not UTF-8 text"):
+        decode_text("Café".encode("cp1252"), PLATFORMS["ubuntu"].text_codepage)
+    data = "Café pears\r\n".encode("cp1252")  # no baseline (a fed file): the weaker check, in the platform's text
+    for platform, path, ok in (("windows", r"C:\Users\user\a.txt", True), ("ubuntu", "/home/user/a.txt", False)):
+        verdict = get_evaluator("file_text_replaced")(state_with({path: data}, platform=platform), path=path,
+                                                      old="apples", new="pears")
+        assert verdict.passed is ok and (ok or "not a text file: not UTF-8 text" in verdict.reason), verdict.reason
 
 
 def test_line_breaks_are_counted_by_kind():
@@ -182,6 +198,23 @@ def test_rtf_document_generator_round_trips():
             generate("rtf_document", args)
 
 
+def test_parse_rtf_reads_colour_strikethrough_hidden_highlight_and_alignment():
+    doc = parse_rtf(rb"{\rtf1{\fonttbl{\f0 Arial;}{\f1 Times;}}{\colortbl;\red255\green0\blue0;\red0\green0\blue0;"
+                    rb"\red255\green255\blue0;}\pard\qc \cf1 R\cf2 K\cf0 A\strike S\strike0\striked1 D\striked0 {\v H}h"
+                    rb"\highlight3 Y\plain P\par\pard \ulw U\ulnone N\cb3 B\par}")
+    assert doc.colors == [None, "#ff0000", "#000000", "#ffff00"]
+    first, second = doc.paragraphs
+    got = [(r.text, r.color, r.strike, r.hidden, r.highlight) for r in first.runs]
+    assert got == [("R", "#ff0000", False, False, None), ("KA", "auto", False, False, None),  # black is automatic
+                   ("SD", "auto", True, False, None),  # \\striked (double) is a strikethrough too
+                   ("H", "auto", False, True, None), ("h", "auto", False, False, None),
+                   ("Y", "auto", False, False, "#ffff00"), ("P", "auto", False, False, None)]
+    assert first.align == "centred" and second.align == "left"  # \pard resets the alignment
+    assert [(r.text, r.underline, r.highlight) for r in second.runs] == [("U", True, None), ("N", False, None),
+                                                                          ("B", False, "#ffff00")]
+    assert first.hidden_text() == "H"
+
+
 def test_parse_date_reads_wordpads_forms_and_no_time_alone():
     day = datetime.date(2026, 11, 24)
     for text in ("11/24/2026", "Tuesday, November 24, 2026", "2026-11-24", "24 November 2026",
@@ -254,7 +287,7 @@ class Box:
         for path in self.paths():
             if self.host(path).exists():
                 files[path] = self.read(path)
-        return state_with(files, platform="windows", baselines=self.baselines)
+        return with_clock(state_with(files, platform="windows", baselines=self.baselines))
 
     def paths(self) -> set[str]:
         """Every Windows path the instance names (its slots, set-up, evaluators)."""
@@ -264,6 +297,20 @@ class Box:
     def evaluate(self) -> list:
         state = self.state()
         return [get_evaluator(spec.func)(state, **spec.args) for spec in self.sub.evaluate]
+
+
+def with_clock(state: FinalState, today: datetime.date | None = None) -> FinalState:
+    """`state` whose device answers the platform's date command with `today` (default: the host's local date,
+    which the host-run negatives' `datetime.date.today()` also read)."""
+    device = state.device()
+    command, other = PLATFORMS[state.platform].today_command, device.run
+    day = (today or datetime.date.today()).isoformat()
+
+    def run(cmd, user=None, timeout=60.0):
+        return CommandResult(0, day + "\r\n", "") if cmd == command else other(cmd, user, timeout)
+
+    device.run = run
+    return state
 
 
 def passed(verdicts) -> bool:
@@ -359,7 +406,7 @@ def careful_results(b: Box) -> list[dict[str, bytes]]:
         half = int(2 * float(v["size"]))
         return [{v["doc"]: wine_rtf([f"\\fs{half} {v['heading']}\\fs22 \\par"] + [p + "\\par" for p in body])}]
     if name == "wordpad_insert_date":
-        today = datetime.datetime.now(datetime.timezone.utc).date()
+        today = datetime.date.today()  # the device's clock (see `with_clock`)
         letter = [rtf_escape(f"Dear {v['person']},"), "Thank you for your visit to our shop.", "Kind regards"]
         forms = (f"{today.month}/{today.day}/{today.year}", today.strftime("%A, %B %d, %Y").replace(" 0", " "))
         return [{v["doc"]: wine_rtf([p + "\\par" for p in letter + [form]])} for form in forms]
@@ -383,36 +430,40 @@ def test_without_a_baseline_the_fallback_checks_still_catch_the_obvious(tmp_path
     path = r"C:\Users\user\Documents\f.txt"
 
     def run(func, data, **args):
-        return get_evaluator(func)(state_with({path: data}, platform="windows"), path=path, **args)
+        return get_evaluator(func)(with_clock(state_with({path: data}, platform="windows")), path=path, **args)
 
-    assert run("windows_text_replaced", b"a pears\r\nb pears\r\n", old="apples", new="pears").passed
-    assert not run("windows_text_replaced", b"a pears\r\nb apples\r\n", old="apples", new="pears").passed
-    assert not run("windows_text_replaced", b"a pears\r\nb pears\n", old="apples", new="pears").passed  # mixed
-    assert run("windows_text_line_endings", b"a\r\nb\r\n").passed
-    assert not run("windows_text_line_endings", b"a\r\nb\n").passed
-    assert "no line breaks" in run("windows_text_line_endings", b"ab").reason
-    assert run("windows_text_lines_deleted", b"keep\r\nalso\r\n", word="gone", kept=["keep", "also"]).passed
-    assert not run("windows_text_lines_deleted", b"keep\r\ngone too\r\n", word="gone", kept=["keep"]).passed
+    assert run("file_text_replaced", b"a pears\r\nb pears\r\n", old="apples", new="pears").passed
+    assert not run("file_text_replaced", b"a pears\r\nb apples\r\n", old="apples", new="pears").passed
+    assert not run("file_text_replaced", b"a pears\r\nb pears\n", old="apples", new="pears").passed  # mixed
+    assert run("file_line_endings", b"a\r\nb\r\n", ending="CRLF").passed
+    assert not run("file_line_endings", b"a\r\nb\n", ending="crlf").passed
+    assert "no line breaks" in run("file_line_endings", b"ab", ending="CRLF").reason
+    assert not run("file_line_endings", b"a\r\r\nb\r\n", ending="CRLF").passed  # a stray CR
+    assert not run("file_line_endings", b"x\r\n", ending="CRLF", contains="Notes").passed
+    assert run("file_lines_without", b"keep\r\nalso\r\n", word="gone", kept=["keep", "also"]).passed
+    assert not run("file_lines_without", b"keep\r\ngone too\r\n", word="gone", kept=["keep"]).passed
+    assert "lost ['also']" in run("file_lines_without", b"keep\r\n", word="gone", kept=["keep", "also"]).reason
+    assert "lost" in run("file_lines_without", b"keep \r\nalso\r\n", word="gone", kept=["keep", "also"]).reason
     doc = generate("rtf_document", {"paragraphs": ["T", "o"], "bold": [0]})
     assert run("rtf_paragraph_bold", doc, text="T", others=["o"]).passed
     assert not run("rtf_paragraph_bold", generate("rtf_document", {"paragraphs": ["T", "o"], "bold": [1]}),
                    text="T", others=["o"]).passed
     assert run("rtf_font_size", generate("rtf_document", {"paragraphs": ["T", "o"], "sizes": [20, 11]}),
                text="T", size=20).passed
-    today = datetime.datetime.now(datetime.timezone.utc).date().isoformat()
+    today = datetime.date.today().isoformat()
     assert run("rtf_date_added", generate("rtf_document", {"paragraphs": ["Hi", today]})).passed
     assert "the date alone" in run("rtf_date_added", generate("rtf_document", {"paragraphs": [today]})).reason
     last_year = (datetime.date.today() - datetime.timedelta(days=400)).isoformat()
     assert not run("rtf_date_added", generate("rtf_document", {"paragraphs": ["Hi", last_year]})).passed
 
 
-def test_windows_text_encoded_bom_choice_and_utf16():
+def test_file_text_encoded_bom_choice_and_utf16():
     src, out = r"C:\Users\user\Documents\s.txt", r"C:\Users\user\Documents\o.txt"
     source = "Zoë\r\n".encode("cp1252")
 
     def run(data, **args):
         state = state_with({src: source, out: data}, platform="windows", baselines={src: source})
-        return get_evaluator("windows_text_encoded")(state, path=out, source=src, **args)
+        return get_evaluator("file_text_encoded")(state, path=out, source=src, **args)
 
     assert run("Zoë\r\n".encode(), encoding="UTF-8").passed
     assert run(b"\xef\xbb\xbf" + "Zoë\r\n".encode(), encoding="UTF-8").passed
@@ -421,3 +472,172 @@ def test_windows_text_encoded_bom_choice_and_utf16():
     assert run(b"\xff\xfe" + "Zoë\r\n".encode("utf-16-le"), encoding="UTF-16 LE").passed
     assert "stored as UTF-16 BE" in run(b"\xfe\xff" + "Zoë\r\n".encode("utf-16-be"), encoding="UTF-16 LE").reason
     assert not run("Zoë\r\n".encode("utf-16-le"), encoding="UTF-16 LE").passed  # no BOM: Notepad reads it as ANSI
+
+
+# -- every formatting property compared; hidden text hides nothing (issue 36) ------------------------------------------
+COLOURED = (b"{\\colortbl;}", b"{\\colortbl;\\red255\\green0\\blue0;\\red255\\green255\\blue0;}")
+TIMES = (b"Arial;}}", b"Arial;}{\\f1\\fcharset0 Times New Roman;}}")
+
+
+@pytest.mark.parametrize("title, body, head, needle", [
+    ("\\b\\cf1 {t}\\cf0\\b0 \\par", None, COLOURED, "its text in colour #ff0000, expected in the automatic colour"),
+    ("\\b\\strike {t}\\strike0\\b0 \\par", None, None, "its text struck through, expected not struck through"),
+    ("\\b\\ul {t}\\ulnone\\b0 \\par", None, None, "its text underlined, expected not underlined"),
+    ("\\b\\i {t}\\i0\\b0 \\par", None, None, "its text italic, expected not italic"),
+    ("\\b\\f1 {t}\\f0\\b0 \\par", None, TIMES, "its text in Times New Roman, expected in Arial"),
+    ("\\b\\highlight2 {t}\\highlight0\\b0 \\par", None, COLOURED, "its text highlighted #ffff00"),
+    ("\\qc\\b {t}\\b0 \\par\\ql", None, None, "centred-aligned, expected left-aligned"),
+    ("\\b {t}\\b0 \\par", "{{\\v This note explains the change in detail.}}\\par", None,
+     "paragraph 2 ('This note explains the change in detail.'): its text hidden (\\v), expected visible"),
+    ("\\b {t}{{\\v  (draft)}}\\b0 \\par", None, None, "reads"),  # text added, hidden
+    ("\\b {t}\\b0 \\par", "This note explains the change in detail.{{\\v  Not really.}}\\par", None,
+     "paragraph 2 reads 'This note explains the change in detail. Not really.'"),
+])
+def test_bold_title_compares_every_property_but_bold(tmp_path, title, body, head, needle):
+    """The title made bold as asked, plus one change nobody asked for: each fails, naming what changed."""
+    b = box(tmp_path, "wordpad_bold_title")
+    t = b.sub.input["title"].value
+    paragraphs = [title.format(t=t), body or "This note explains the change in detail.\\par",
+                  "Questions go to the office.\\par"]
+    data = wine_rtf(paragraphs)
+    b.write(b.sub.input["doc"].value, data.replace(*head) if head else data)
+    verdicts = b.evaluate()
+    assert not passed(verdicts) and needle in reasons(verdicts), reasons(verdicts)
+    b.write(b.sub.input["doc"].value, wine_rtf([f"\\b {t}\\b0 \\par"] + paragraphs[1:] if body is None else
+                                               [f"\\b {t}\\b0 \\par", "This note explains the change in detail.\\par",
+                                                "Questions go to the office.\\par"]))
+    assert passed(b.evaluate()), reasons(b.evaluate())
+
+
+def test_font_size_compares_every_property_but_the_size(tmp_path):
+    b = box(tmp_path, "wordpad_font_size")
+    h, half = b.sub.input["heading"].value, int(2 * float(b.sub.input["size"].value))
+    rest = ["The opening hours change next month.\\par", "Details follow in a separate letter.\\par"]
+    for heading, head, needle in ((f"\\fs{half}\\cf1 {h}\\cf0\\fs22 \\par", COLOURED, "in colour #ff0000"),
+                                  (f"\\fs{half}\\f1 {h}\\f0\\fs22 \\par", TIMES, "in Times New Roman"),
+                                  (f"\\fs{half}\\strike {h}\\strike0\\fs22 \\par", None, "struck through"),
+                                  (f"\\fs{half}\\v {h}\\v0\\fs22 \\par", None, "hidden (\\v)")):
+        data = wine_rtf([heading] + rest)
+        b.write(b.sub.input["doc"].value, data.replace(*head) if head else data)
+        assert needle in reasons(b.evaluate()), (needle, reasons(b.evaluate()))
+
+
+def test_text_saved_as_rtf_must_keep_plain_formatting(tmp_path):
+    b = box(tmp_path, "wordpad_save_rtf")
+    lines = split_lines(decode_text(b.read(b.sub.input["text_file"].value)).text)
+    doc = b.sub.output["doc"].value
+    body = [rtf_escape(line) + "\\par" for line in lines] + ["\\par"]
+    for i, (edit, head, needle) in enumerate((
+            (lambda x: "\\b " + x + "\\b0 ", None, "its text bold, expected not bold"),
+            (lambda x: "{\\v " + x + "}", None, "its text hidden (\\v), expected visible"),
+            (lambda x: "\\f1 " + x + "\\f0 ", TIMES, "its text in Times New Roman, expected in Courier New"),
+            (lambda x: "\\cf1 " + x + "\\cf0 ", COLOURED, "in colour #ff0000"))):
+        edited = list(body)
+        edited[1] = edit(edited[1][:-len("\\par")]) + "\\par"
+        data = wine_rtf(edited, 18).replace(b"Arial", b"Courier New")
+        b.write(doc, data.replace(*(h.replace(b"Arial", b"Courier New") for h in head)) if head else data)
+        assert needle in reasons(b.evaluate()), (i, reasons(b.evaluate()))
+    b.write(doc, wine_rtf(body, 18).replace(b"Arial", b"Courier New"))  # one font and size, whichever it is
+    assert passed(b.evaluate()), reasons(b.evaluate())
+
+
+def reasons(verdicts) -> str:
+    return " | ".join(v.reason for v in verdicts if not v.passed)
+
+
+# -- today by the device's clock (issue 36) ----------------------------------------------------------------------------
+DAY = r"C:\Users\user\AppData\Local\jarvis\wordpad_insert_date.day"
+
+
+def dated_letter(day: datetime.date, hidden: bool = False) -> bytes:
+    date = f"{day.month}/{day.day}/{day.year}"
+    return wine_rtf(["Dear Ann,\\par", "Kind regards\\par", ("{\\v " + date + "}" if hidden else date) + "\\par"])
+
+
+def judge_date(data: bytes, device_day: datetime.date, setup_day: datetime.date | None) -> Verdict:
+    path = r"C:\Users\user\Documents\letter.rtf"
+    base = {path: wine_rtf(["Dear Ann,\\par", "Kind regards\\par"])}
+    if setup_day is not None:
+        base[DAY] = setup_day.isoformat().encode()
+    state = with_clock(state_with({path: data}, platform="windows", baselines=base), device_day)
+    return get_evaluator("rtf_date_added")(state, path=path, setup_day=DAY)
+
+
+def test_the_date_is_the_devices_today_exactly():
+    device = datetime.date(2031, 3, 1)  # the device's clock, whatever the host's says
+    assert judge_date(dated_letter(device), device, device).passed
+    for day in (device - datetime.timedelta(days=1), device + datetime.timedelta(days=1),
+                datetime.date.today() if datetime.date.today() != device else device.replace(year=2030)):
+        verdict = judge_date(dated_letter(day), device, device)
+        assert not verdict.passed and f"the date {day}" in verdict.reason and "(set up the same day)" in verdict.reason
+    no_record = judge_date(dated_letter(device - datetime.timedelta(days=1)), device, None)
+    assert not no_record.passed and "no record of the set-up day" in no_record.reason
+
+
+def test_the_day_before_counts_only_when_the_devices_clock_crossed_midnight():
+    device = datetime.date(2031, 3, 1)
+    before = device - datetime.timedelta(days=1)
+    verdict = judge_date(dated_letter(before), device, before)  # set up at 23:59, evaluated at 00:01
+    assert verdict.passed and "crossed midnight since set-up on 2031-02-28" in verdict.reason
+    assert judge_date(dated_letter(device), device, before).passed
+    assert not judge_date(dated_letter(before - datetime.timedelta(days=1)), device, before).passed
+
+
+def test_a_hidden_date_is_no_date_added():
+    device = datetime.date(2031, 3, 1)
+    verdict = judge_date(dated_letter(device, hidden=True), device, device)
+    assert not verdict.passed and "as hidden text" in verdict.reason
+    white = dated_letter(device).replace(b"{\\colortbl;}", b"{\\colortbl;\\red255\\green255\\blue255;}")
+    white = white.replace(f"{device.month}/".encode(), f"\\cf1 {device.month}/".encode())
+    verdict = judge_date(white, device, device)
+    assert not verdict.passed and "white on the white page" in verdict.reason, verdict.reason
+
+
+def test_a_device_that_does_not_tell_its_date_is_an_infrastructure_error():
+    path = r"C:\Users\user\Documents\letter.rtf"
+    state = state_with({path: dated_letter(datetime.date.today())}, platform="windows")
+    state.device().run = lambda cmd, user=None, timeout=60.0: CommandResult(1, "", "'pythonw.exe' is not recognized")
+    with pytest.raises(InfrastructureError, match="did not tell its date"):
+        get_evaluator("rtf_date_added")(state, path=path)
+
+
+def test_the_twins_are_gone_and_the_merged_evaluators_take_any_case():
+    path = r"C:\Users\user\Documents\f.txt"
+    before, after = b"a\nb apples\n", b"a\r\nb apples\r\n"
+    state = state_with({path: after}, platform="windows", baselines={path: before})
+    assert get_evaluator("file_line_endings")(state, path=path, ending="crlf").passed
+    for twin in ("windows_text_line_endings", "windows_text_replaced", "windows_text_lines_deleted",
+                 "windows_text_encoded", "windows_text_lines", "windows_file_copied", "files_identical",
+                 "copy_identical", "windows_tree", "windows_folders_copied", "windows_file_lists",
+                 "windows_file_number"):
+        with pytest.raises(ConfigError, match="unknown evaluator"):
+            get_evaluator(twin)
+
+
+CLASS_NEGATIVES = [  # (template, words of the negative's note, what its reason must name): each fails for its class
+    ("wordpad_bold_title", "colour changed", "in colour #c00000, expected in the automatic colour"),
+    ("wordpad_bold_title", "struck through", "struck through, expected not struck through"),
+    ("wordpad_bold_title", "another font", "in Times New Roman, expected in Arial"),
+    ("wordpad_bold_title", "second paragraph made hidden", "paragraph 2 ('This note explains the change in detail.'): "
+                                                           "its text hidden (\\v), expected visible"),
+    ("wordpad_font_size", "colour changed", "in colour #0000c0"),
+    ("wordpad_font_size", "another font", "in Times New Roman, expected in Arial"),
+    ("wordpad_font_size", "last paragraph made hidden", "paragraph 3 ('Details follow in a separate letter.'): its "
+                                                        "text hidden (\\v)"),
+    ("wordpad_insert_date", "yesterday's date", f"the date {datetime.date.today() - datetime.timedelta(days=1)}"),
+    ("wordpad_insert_date", "as hidden text", "as hidden text (\\v) or white on the white page"),
+    ("wordpad_insert_date", "thank-you line made hidden", "paragraph 2 ('Thank you for your visit to our shop.'): its "
+                                                          "text hidden (\\v)"),
+    ("wordpad_insert_date", "struck through", "paragraph 3 ('Kind regards'): its text struck through"),
+    ("wordpad_save_rtf", "first line made bold", "paragraph 1 ('Minutes of the"),
+    ("wordpad_save_rtf", "made hidden text", "paragraph 2 ('Present: Zoë Martin, Ben Cole'): its text hidden (\\v)"),
+]
+
+
+@pytest.mark.parametrize("name, words, needle", CLASS_NEGATIVES, ids=[f"{n}-{w}" for n, w, _ in CLASS_NEGATIVES])
+def test_the_negatives_of_each_class_fail_for_that_class(tmp_path, name, words, needle):
+    b = box(tmp_path, name)
+    negative = next(n for n in b.sub.negatives if words in n.note)
+    for step in negative.steps:
+        b.run(step.command)
+    assert needle in reasons(b.evaluate()), reasons(b.evaluate())

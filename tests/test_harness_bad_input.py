@@ -92,6 +92,13 @@ def case_unknown_evaluator(tmp: Path):
     return ["--agent", "noop", "--library", str(lib)], ["t.json", "evaluate[0].func", "no_such_check"]
 
 
+def case_misspelt_evaluator_argument(tmp: Path):
+    evaluate = [dict(spec, args={("pathh" if k == "path" else k): v for k, v in spec["args"].items()})
+                for spec in TEMPLATE["evaluate"]]
+    lib = library_with(tmp / "lib", dict(TEMPLATE, evaluate=evaluate))
+    return ["--agent", "noop", "--library", str(lib)], ["t.json", "evaluate[0].args.pathh", "did you mean `path`?"]
+
+
 def case_host_fixture(tmp: Path):
     bad = dict(TEMPLATE, config=[{"type": "upload_file", "path": "/home/user/x", "fixture": "/etc/passwd"}])
     lib = library_with(tmp / "lib", bad)
@@ -124,6 +131,23 @@ def case_dataset_unknown_evaluator(tmp: Path):
     return ["--agent", "noop", "--dataset", str(f)], ["d.json", "evaluate[0].func", "nope"]
 
 
+def case_dataset_misspelt_argument(tmp: Path):
+    from jarvis_pytest.tasks.instances import atomic_instances
+    from jarvis_pytest.tasks.library import load_library
+
+    task = next(t.to_json() for t in atomic_instances(load_library(REPO / "tasks"), 1)
+                if t.id.startswith("ubuntu-thunar-rename_file"))
+    task = dict(task, id="x1", category="sw", edges=[])
+    sub = task["formatted_subtasks"][0]
+    evaluate = [dict(sub["evaluate"][0], args={("pathh" if k == "path" else k): v
+                                               for k, v in sub["evaluate"][0]["args"].items()})]
+    task["formatted_subtasks"] = [sub, dict(sub, evaluate=evaluate)]
+    f = tmp / "d.json"
+    f.write_text(json.dumps({"tasks": [task]}))
+    return ["--agent", "noop", "--dataset", str(f)], ["d.json", "'x1'", "formatted_subtasks[1].evaluate[0].args.pathh",
+                                                      "did you mean `path`?"]
+
+
 CASES = {
     "device-memory": (["--agent", "noop", "--device-memory", "bogus"], ["--device-memory", "4g"]),
     "device-cpus": (["--agent", "noop", "--device-cpus", "-2"], ["--device-cpus", "positive"]),
@@ -145,10 +169,12 @@ CASES = {
     "resume a live run": case_live_run,
     "resume with changed tasks": case_changed_task,
     "unknown evaluator": case_unknown_evaluator,
+    "misspelt evaluator argument": case_misspelt_evaluator_argument,
     "host file as fixture": case_host_fixture,
     "upload outside the home": case_upload_outside,
     "dataset not JSON": case_bad_json_dataset,
     "dataset with unknown evaluator": case_dataset_unknown_evaluator,
+    "dataset with a misspelt evaluator argument": case_dataset_misspelt_argument,
 }
 
 

@@ -98,7 +98,7 @@ def test_noop_fails_every_task_with_reasons(device_images, tmp_path):
     results, _ = load_results(tmp_path)
     assert len(results) == 6 and all(r.status == "failed" for r in results)
     assert "file_text_replaced: expected" in proc.stdout and "found no file" in proc.stdout
-    assert "files_identical: expected an independent copy" in proc.stdout  # a composed task's subtask
+    assert "file_copied: expected an independent copy" in proc.stdout  # a composed task's subtask
     s = summary_of(tmp_path)
     assert s["atomic"]["ubuntu"]["k"] == 0 and s["composed"]["sw"]["ssr"]["rate"] == 0.0
 

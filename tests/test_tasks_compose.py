@@ -18,6 +18,7 @@ from jarvis_pytest.tasks.dataset import dumps_dataset, load_dataset, load_tasks
 from jarvis_pytest.tasks.graph import classify, evaluability_problems, task_problems
 from jarvis_pytest.tasks.library import Library, load_library
 from jarvis_pytest.devices.platforms import spec
+from jarvis_pytest.tasks.transfer import transfer_links
 
 LIBRARY = Path(__file__).parent / "data" / "library"
 
@@ -54,25 +55,26 @@ def test_cross_platform_edge_gets_a_transfer_and_values_propagate(library):
     assert [s.type for s in bright.config] == ["launch"]  # the step that provided `image` was dropped
     assert [e.model_dump(by_alias=True) for e in built.edges] == [
         {"from": (0, "photo"), "to": (1, "transferred_file")}, {"from": (1, "received_file"), "to": (2, "image")}]
-    assert transfer.evaluate[0].func == "transfer_has_file" and transfer.evaluate[0].args == {"name": "receipt.jpg"}
-    assert transfer.evaluate[1].func == "transfer_arrived_unchanged" and transfer.evaluate[1].args == {
+    (check,) = transfer.evaluate
+    assert check.func == "transfer_arrived_unchanged" and check.args == {
         "source": "/sdcard/DCIM/Camera/receipt.jpg", "source_platform": "android",
         "path": "/tmp/transfer/receipt.jpg", "folder": "/data"}
 
 
 def test_a_received_file_edited_downstream_is_not_compared_with_the_source():
-    """Notepad converts the received file's line breaks on purpose: the transfer then compares the source with the
-    drive's copy only (the destination legitimately differs); a copy kept as it arrived is compared all three
-    ways."""
+    """Notepad converts the received file's line breaks on purpose, after the transfer: the transfer then does not
+    compare the destination (the converter compares with what arrived); a copy kept as it arrived is compared. The
+    run_script that made the file ran before the transfer: it changes nothing later. Sides are decided from the
+    graph when the task is evaluated, never written into the dataset."""
     real = load_library(Path(__file__).resolve().parents[1] / "tasks")
     run = node(real, "ubuntu-terminal-run_script")
-    edited = build(Draft((run, node(real, "windows-notepad-crlf_line_endings")),
-                         (Link(0, "result", 1, "text_file"),))).subtasks[1]
-    assert edited.evaluate[1].args.get("destination_changes_later") is True
-    assert "source_changes_later" not in edited.evaluate[1].args
-    kept = build(Draft((run, node(real, "windows-wordpad-save_rtf")),
-                       (Link(0, "result", 1, "text_file"),))).subtasks[1]
-    assert not {"source_changes_later", "destination_changes_later"} & set(kept.evaluate[1].args)
+    edited = build(Draft((run, node(real, "windows-notepad-crlf_line_endings")), (Link(0, "result", 1, "text_file"),)))
+    links = transfer_links(edited.subtasks, edited.edges, 1)
+    assert links.destination_consumed == "edit" and not links.source_changed_later and links.upstream == 0
+    kept = build(Draft((run, node(real, "windows-wordpad-save_rtf")), (Link(0, "result", 1, "text_file"),)))
+    links = transfer_links(kept.subtasks, kept.edges, 1)
+    assert links.destination_consumed is None and not links.source_changed_later
+    assert all(set(e.args) == {"source", "source_platform", "path", "folder"} for e in kept.subtasks[1].evaluate)
 
 
 def test_a_program_that_shows_an_upstream_file_is_opened_by_the_subtask_not_at_set_up():

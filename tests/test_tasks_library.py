@@ -26,7 +26,7 @@ GOOD = {
     "inputs": {"source": {"type": "txt_file", "choices": ["/home/user/a.txt", "/home/user/b.txt"]}},
     "outputs": {"copy": {"type": "txt_file", "value": "{{source.dir}}/copy_of_{{source.name}}"}},
     "config": [{"type": "upload_file", "path": "{{source}}", "content": "hello", "provides": "source"}],
-    "evaluate": [{"func": "files_identical", "args": {"path": "{{copy}}", "reference": "{{source}}"}}],
+    "evaluate": [{"func": "file_copied", "args": {"path": "{{copy}}", "source": "{{source}}"}}],
     "solution": [{"command": "cp '{{source}}' '{{copy}}'"}],
 }
 
@@ -77,7 +77,8 @@ def test_materialise_binds_inputs_outputs_and_drops_provided_setup(library):
     assert sub.output["sorted_file"].value == "/home/user/Documents/grades_sorted.xlsx"
     assert [s.type for s in sub.config] == ["upload_file", "open"]
     assert sub.config[0].fixture == "office/grades.xlsx"
-    assert sub.evaluate[1].args == {"path": "/home/user/Documents/grades_sorted.xlsx", "column": "B", "header": True}
+    assert sub.evaluate[1].args == {"path": "/home/user/Documents/grades_sorted.xlsx",
+                                    "reference": "/home/user/Documents/grades.xlsx", "column": "B"}
     fed = materialise(tpl, {"spreadsheet": "/x.xlsx", "column": "B"},
                       fed={"spreadsheet": BoundSlot(type="xlsx_file", value="/tmp/transfer/q.xlsx")})
     assert fed.config == []  # both setup steps provide the fed input
@@ -263,10 +264,10 @@ def test_cycle_in_the_library_types_file(tmp_path):
 
 def test_unknown_evaluator_with_a_registry(tmp_path):
     root, path = _library_with(tmp_path, GOOD)
-    with pytest.raises(ConfigError, match="unknown evaluator 'files_identical'") as err:
+    with pytest.raises(ConfigError, match="unknown evaluator 'file_copied'") as err:
         load_library(root, evaluators={"file_exists"})
     assert err.value.path == str(path)
-    assert load_library(root, evaluators={"files_identical"}).templates
+    assert load_library(root, evaluators={"file_copied"}).templates
 
 
 def test_missing_library_folder(tmp_path):

@@ -71,8 +71,9 @@ def templates(draw, index: int) -> TaskTemplate:
         "inputs": inputs, "outputs": outputs,
         "config": [{"type": "upload_file", "path": f"{{{{{n}}}}}", "content": f"data {{{{{n}.name}}}}", "provides": n}
                    for n in file_inputs] + [{"type": "sleep", "seconds": 0.1}],
-        "evaluate": [{"func": "file_contains", "args": {"slot": f"{{{{{s}}}}}", "text": f"is {{{{{s}}}}}"}} for s in slots]
-        or [{"func": "file_exists", "args": {}}],
+        "evaluate": [{"func": "file_contains", "args": {"path": _join(platform, BASE[platform], "answer.txt"),
+                                                        "text": f"is {{{{{s}}}}}"}} for s in slots]
+        or [{"func": "file_exists", "args": {"path": _join(platform, BASE[platform], "answer.txt")}}],
         "solution": [{"command": f"echo {{{{{s}}}}}"} for s in slots],
         "consumes": consumes,
         "settings": draw(st.lists(st.sampled_from(["wallpaper", "theme"]), max_size=1)),

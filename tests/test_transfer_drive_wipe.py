@@ -15,6 +15,7 @@ DRIVE_SCRIPT = Path(__file__).resolve().parents[1] / "fixtures" / "images" / "tr
 
 @pytest.fixture
 def drive(tmp_path, monkeypatch):
+    monkeypatch.syspath_prepend(str(DRIVE_SCRIPT.parent))  # drive.py imports its neighbour ledger.py
     spec = importlib.util.spec_from_file_location("jarvis_drive_script", DRIVE_SCRIPT)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

@@ -29,6 +29,7 @@ class DesktopDevice:
 
     def __init__(self, base_url: str, platform: str = "ubuntu", timeout: float = 30.0):
         self.platform = platform
+        self.names_windows = platform == "windows"  # its server names windows by id (`launch_window`, `focus_window`)
         self.base_url = base_url.rstrip("/")
         self.http = http_client(base_url=self.base_url, timeout=timeout)
 
@@ -107,10 +108,15 @@ class DesktopDevice:
         """Start `app` with `args`; return once the desktop shows a new application window or an existing one
         changed its title (True: the next screenshot shows the app), or after `window_wait` seconds without
         either (False). Splash screens do not count. `window_wait=0` returns at once."""
+        return self.launch_window(app, *args, window_wait=window_wait).window
+
+    def launch_window(self, app: str, *args: str, window_wait: float = LAUNCH_WINDOW_WAIT) -> LaunchResponse:
+        """`launch`, answered with the window: whether one showed, and its `id` where the device names windows
+        (Windows; None elsewhere)."""
         req = LaunchRequest(app=app, args=list(args), window_wait=window_wait)
         resp = self._request("POST", "/launch", content=req.model_dump_json(), timeout=window_wait + 30,
                              headers={"Content-Type": "application/json"})
-        return LaunchResponse.model_validate(self._ok(resp).json()).window
+        return LaunchResponse.model_validate(self._ok(resp).json())
 
     def exists(self, path: str) -> bool:
         """Whether a file or folder exists at `path` on the device."""
@@ -120,21 +126,36 @@ class DesktopDevice:
     def open(self, path: str, *, window_wait: float = LAUNCH_WINDOW_WAIT) -> bool:
         """Open a file or folder with the device's default application; like `launch`, True once its window
         shows."""
+        return self.open_window(path, window_wait=window_wait).window
+
+    def open_window(self, path: str, *, window_wait: float = LAUNCH_WINDOW_WAIT) -> LaunchResponse:
+        """`open`, answered with the window, like `launch_window`."""
         req = OpenRequest(path=path, window_wait=window_wait)
         resp = self._request("POST", "/open", content=req.model_dump_json(), timeout=window_wait + 30,
                              headers={"Content-Type": "application/json"})
-        return LaunchResponse.model_validate(self._ok(resp).json()).window
+        return LaunchResponse.model_validate(self._ok(resp).json())
 
     def focus(self, title: str, *, timeout: float = 5.0) -> bool:
         """Bring the application window whose title shows `title` (a substring, or a whole title with `*` for any
         text, case-insensitive) to the front; False when none showed within
         `timeout` seconds."""
-        resp = self._request("POST", "/focus", content=FocusRequest(title=title, timeout=timeout).model_dump_json(),
+        return self.focus_window(title, timeout=timeout) is not None
+
+    def focus_window(self, title: str | None = None, *, id: int | None = None, timeout: float = 5.0) -> dict | None:
+        """Bring a window to the front: the one whose title shows `title` (of several, on Windows, the newest), or
+        the one `id` names (Windows; with `title`, once it shows it). On Windows a foreground that is already the
+        window's own (it, a menu it opened, a dialog it shows) is left as it is, and the answer has `id`, `title`,
+        `pid` of the window, `changed` (whether the foreground had to move) and `before` (the foreground window
+        then). None when no such window showed within `timeout` seconds; `{"error": ...}` when the device could
+        not bring it to the front."""
+        req = FocusRequest(title=title, id=id, timeout=timeout)
+        resp = self._request("POST", "/focus", content=req.model_dump_json(exclude_defaults=True),
                              headers={"Content-Type": "application/json"}, timeout=timeout + 30)
         if resp.status_code == 404:
-            return False
-        self._ok(resp)
-        return True
+            return None
+        if resp.status_code == 409:
+            return {"error": self._error(resp)}
+        return self._ok(resp).json()
 
     def windows(self) -> list[dict]:
         """The visible top-level windows: id, title, class, box [x, y, w, h], focused."""

@@ -30,6 +30,18 @@ class PlatformSpec:
     transfer_folder: str             # where the built-in transfer task saves received files
     shell: str                       # what `Device.run` runs commands with: bash | cmd | sh
     desktop_user: str | None = None  # the user commands run as by default (None: the shell's own)
+    text_codepage: str | None = None  # the 8-bit ("ANSI") code page of plain text that is neither UTF-8 nor marked
+    #                                  by a byte order mark; None: such bytes are no text on this platform
+    today_command: str = "date +%F"  # prints the device's local date (YYYY-MM-DD) on standard output
+    # file-system conventions, read by the evaluators' file facts (`evaluators/file_facts.py`):
+    file_facts: Literal["posix_shell", "windows_probe"] = "posix_shell"  # how they are read on the device
+    hidden_by: Literal["dot_name", "attributes"] = "dot_name"  # what hides an entry from a folder's listing
+    trash: str | None = None         # where a deleted file waits to be restored: a freedesktop.org trash folder
+    #                                  (info/ and files/); Windows: the Recycle Bin folder of each drive
+    shell_files: tuple[str, ...] = ()  # names the desktop's own file manager writes into folders (Explorer's
+    #                                  desktop.ini, Thumbs.db): folder checks pass over one only if it is such a file
+    drive_root: str | None = None    # where the transfer drive shows as a drive letter (Windows: S:\); None: it
+    #                                  is reached over HTTP only
 
     @property
     def sep(self) -> str:
@@ -88,7 +100,7 @@ class PlatformSpec:
         """Where a drive URL's file is on this device's drive letter (Windows: `S:\\data\\name`)."""
         if "://" not in url:
             return url
-        return "S:\\" + url.split("/", 3)[3].replace("/", "\\")
+        return (self.drive_root or "S:\\") + url.split("/", 3)[3].replace("/", "\\")
 
 
 PLATFORMS: dict[str, PlatformSpec] = {
@@ -99,11 +111,20 @@ PLATFORMS: dict[str, PlatformSpec] = {
     "windows": PlatformSpec(
         name="windows", label="Windows", device_name="Windows PC", screen=(1920, 1080), path_style="windows",
         case_insensitive_paths=True, home="C:\\Users\\user", writable_roots=("C:\\Users\\user", "C:\\temp", "S:\\"),
-        transfer_folder="C:\\Users\\user\\Downloads\\transfer", shell="cmd"),
+        transfer_folder="C:\\Users\\user\\Downloads\\transfer", drive_root="S:\\", shell="cmd",
+        text_codepage="cp1252",
+        file_facts="windows_probe", hidden_by="attributes", trash="$Recycle.Bin",
+        shell_files=("desktop.ini", "thumbs.db"),
+        # the device's Python writes the date to a file that cmd's own `type` prints: under Wine the output of a
+        # program the control server's cmd starts never reaches the server, that of cmd's built-ins does
+        today_command=('"C:\\jarvis\\python\\pythonw.exe" -I -c "import datetime,os; open(os.path.join(os.environ['
+                       "'TEMP'],'jarvis-today.txt'),'w').write(datetime.date.today().isoformat())\" && type "
+                       '"%TEMP%\\jarvis-today.txt" && del "%TEMP%\\jarvis-today.txt"')),
     "ubuntu": PlatformSpec(
         name="ubuntu", label="Ubuntu", device_name="Ubuntu desktop", screen=(1920, 1080), path_style="posix",
         case_insensitive_paths=False, home="/home/user", writable_roots=("/home/user", "/tmp"),
-        transfer_folder="/tmp/transfer", shell="bash", desktop_user="user"),
+        transfer_folder="/tmp/transfer", shell="bash", desktop_user="user",
+        trash="/home/user/.local/share/Trash"),
 }
 PLATFORM_NAMES: tuple[str, ...] = tuple(PLATFORMS)
 

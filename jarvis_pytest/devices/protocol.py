@@ -60,6 +60,7 @@ class LaunchRequest(_Model):
 class LaunchResponse(_Model):
     ok: bool = True
     window: bool = Field(default=False, description="a new window (or a changed title) showed within the wait")
+    id: int | None = Field(default=None, description="that window, where the device names windows (Windows)")
 
 
 class ErrorResponse(_Model):
@@ -74,9 +75,12 @@ class OpenRequest(_Model):
 
 
 class FocusRequest(_Model):
-    """POST /focus: bring the application window whose title contains `title` to the front."""
+    """POST /focus: bring the application window whose title contains `title` to the front; on Windows also a
+    window named by its `id` (with `title`: once it shows that title), and a foreground that is already the
+    window's own (it, its menu, a dialog it shows) is left as it is. One of `title` and `id` is needed."""
 
-    title: str = Field(min_length=1)
+    title: str | None = Field(default=None, min_length=1)
+    id: int | None = Field(default=None, description="a window id (`launch`, `windows`); Windows only")
     timeout: float = Field(default=5.0, ge=0.0, le=60.0, description="seconds to wait for such a window")
 
 
@@ -93,6 +97,7 @@ class WindowInfo(_Model):
     class_: str = Field(alias="class")
     box: list[int]  # x, y, width, height on the screen
     focused: bool = False
+    pid: int | None = None  # the process that owns the window, where the device says (Windows)
 
     model_config = ConfigDict(extra="forbid", populate_by_name=True)
 

@@ -60,7 +60,7 @@ REQUESTS: dict[str, dict[str, tuple]] = {
             "timeout": (_float(0, 3600, above=True), 60.0)},
     "launch": {"app": (("str", 1), REQUIRED), "args": (("strlist0",), []), "window_wait": (_float(0, 120), 0.0)},
     "open": {"path": (("str", 1), REQUIRED), "window_wait": (_float(0, 120), 0.0)},
-    "focus": {"title": (("str", 1), REQUIRED), "timeout": (_float(0, 60), 5.0)},
+    "focus": {"title": (("str?", 1), None), "id": (_int(optional=True), None), "timeout": (_float(0, 60), 5.0)},
     "clipboard": {"text": (("str", 0), REQUIRED)},
 }
 
@@ -96,6 +96,8 @@ def _check(where: str, name: str, spec: tuple, value):
     if kind == "str?":
         if value is not None and not isinstance(value, str):
             raise Invalid(f"{field}: must be a string or null")
+        if value is not None and len(spec) > 1 and len(value) < spec[1]:
+            raise Invalid(f"{field}: must not be empty")
         return value
     if kind in ("strlist", "strlist0"):
         if not isinstance(value, list) or not all(isinstance(v, str) for v in value):

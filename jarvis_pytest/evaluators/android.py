@@ -37,6 +37,7 @@ from typing import Any
 from jarvis_pytest.devices.android.outputs import parse_content_rows, settings_value
 from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.evaluators.browser import check_bookmark
+from jarvis_pytest.evaluators.folders import changed_since_setup
 from jarvis_pytest.evaluators.registry import Verdict, evaluator
 from jarvis_pytest.evaluators.state import FinalState, judge_file
 
@@ -618,7 +619,7 @@ def android_file_deleted(state: FinalState, path: str, kept: list[str] | None = 
                          platform: str | None = None) -> Verdict:
     """The file at `path` is deleted (or in MediaStore's trash), not moved or copied elsewhere: no file under
     `root` outside the trash holds the bytes it had at set-up (list `path` under `baseline`; without one only its
-    absence is checked), and every file of `kept` is still there with its set-up bytes."""
+    absence is checked), and every file of `kept` is still there unchanged (`changed_since_setup`)."""
     want = f"{path} deleted" + (f" and the {len(kept)} other file(s) kept unchanged" if kept else "")
     problems = []
     if state.exists(path, platform):
@@ -634,13 +635,7 @@ def android_file_deleted(state: FinalState, path: str, kept: list[str] | None = 
             if h == digest and name != path and not name.rsplit("/", 1)[-1].startswith(TRASHED):
                 problems.append(f"its content still at {name} (moved or copied, not deleted)")
                 break
-    for k in kept or []:
-        now = state.pull(k, platform)
-        base = state.baseline(k, platform)
-        if now is None:
-            problems.append(f"{k} gone")
-        elif base is not None and now != base:
-            problems.append(f"{k} changed")
+    problems += changed_since_setup(state, kept, platform)
     return Verdict.check(not problems, want, "; ".join(problems) or "deleted, the others kept")
 
 

@@ -1,5 +1,5 @@
 """File checks of desktop tasks that compare the agent's result with what the task set up (image viewer, browser,
-media player): originals come from the template's `baseline` (the file right after set-up, captured on the host,
+media player; a copy or a download is `folders.file_copied`): originals come from the template's `baseline` (the file right after set-up, captured on the host,
 so an agent that overwrites the original cannot move the goalposts), never from the agent's own output alone.
 
 Each check says in its docstring what it falls back to when there is no baseline (a file an earlier subtask of a
@@ -13,6 +13,7 @@ import re
 import shlex
 from html.parser import HTMLParser
 
+from jarvis_pytest.evaluators.folders import changed_since_setup
 from jarvis_pytest.evaluators.registry import Verdict, evaluator
 from jarvis_pytest.evaluators.state import FinalState, as_text
 
@@ -24,51 +25,12 @@ def _short(text: str, limit: int = 120) -> str:
     return repr(text if len(text) <= limit else text[:limit] + "…")
 
 
-def _describe(data: bytes) -> str:
-    return f"{len(data)} bytes, sha256 {hashlib.sha256(data).hexdigest()[:12]}"
-
-
-# -- copies ----------------------------------------------------------------------------------------------------
-def check_copy(copy: bytes | None, original: bytes | None, path: str, reference: str,
-               reference_now: bytes | None = None, keep_reference: bool = False) -> Verdict:
-    """`copy` (the file at `path`) has exactly the bytes of `original` (the reference as set up); with
-    `keep_reference`, the reference itself (`reference_now`) is still there, unchanged."""
-    want = f"{path} a byte-identical copy of {reference}" + (" (kept unchanged)" if keep_reference else "")
-    if original is None:
-        return Verdict.check(False, want, f"no file at {reference}")
-    if copy is None:
-        return Verdict.check(False, want, f"no file at {path}")
-    if copy != original:
-        return Verdict.check(False, want, f"{path} of {_describe(copy)}, not the original's {_describe(original)}")
-    if keep_reference:
-        if reference_now is None:
-            return Verdict.check(False, want, f"the copy right, but the original {reference} is gone "
-                                              "(moved, not copied)")
-        if reference_now != original:
-            return Verdict.check(False, want, f"the copy right, but the original {reference} changed "
-                                              f"({_describe(reference_now)})")
-    return Verdict.check(True, want, f"identical ({_describe(copy)})")
-
-
-@evaluator("copy_identical")
-def copy_identical(state: FinalState, path: str, reference: str, keep_reference: bool = True,
-                   platform: str | None = None) -> Verdict:
-    """`path` holds exactly the bytes `reference` had right after set-up (list `reference` under `baseline`), and
-    with `keep_reference` the original is still there unchanged. Without a baseline (the reference made by an
-    earlier subtask of a composed task) it compares with the reference as it is now, which only proves the two
-    files equal."""
-    now = state.pull(reference, platform)
-    base = state.baseline(reference, platform)
-    original = base if base is not None else now
-    return check_copy(state.pull(path, platform), original, path, reference, now, keep_reference and base is not None)
-
-
 # -- deletion --------------------------------------------------------------------------------------------------
-def check_deleted(path: str, still_there: bool, elsewhere: list[str],
-                  kept: dict[str, tuple[bool, bool | None]]) -> Verdict:
+def check_deleted(path: str, still_there: bool, elsewhere: list[str], kept: list[str],
+                  changed: list[str]) -> Verdict:
     """The file at `path` is deleted: not there, and its content nowhere else outside the trash (`elsewhere`: the
-    paths holding it); every file of `kept` (path → (exists, unchanged or None when unknown)) still there and
-    unchanged."""
+    paths holding it); nothing changed among the files of `kept` (`changed`: what did, as `changed_since_setup`
+    says it)."""
     want = f"{path} deleted (gone, or in the trash)" + (f" and the {len(kept)} other file(s) kept unchanged"
                                                          if kept else "")
     problems = []
@@ -76,11 +38,7 @@ def check_deleted(path: str, still_there: bool, elsewhere: list[str],
         problems.append(f"{path} still there")
     if elsewhere:
         problems.append(f"its content moved or copied to {', '.join(elsewhere[:3])}, not deleted")
-    for k, (exists, same) in kept.items():
-        if not exists:
-            problems.append(f"lost {k}")
-        elif same is False:
-            problems.append(f"{k} changed")
+    problems += changed
     return Verdict.check(not problems, want, "; ".join(problems) if problems else "deleted, the others kept")
 
 
@@ -91,7 +49,7 @@ def file_deleted(state: FinalState, path: str, kept: list[str] | None = None, pl
     its content as set up (list `path` under `baseline`). Without a baseline (an input an earlier subtask of a
     composed task made) that search is skipped — a file of the same name or content may rightly exist elsewhere
     there (the earlier subtask's source) — and only its absence is checked. Every file of `kept` is still there
-    and, when its baseline is known, unchanged."""
+    unchanged (`changed_since_setup`)."""
     still_there = state.exists(path, platform)
     roots = " ".join(SEARCH_ROOTS)
     prune = f"-path {shlex.quote(TRASH)} -prune -o"
@@ -103,12 +61,7 @@ def file_deleted(state: FinalState, path: str, kept: list[str] | None = None, pl
                         "xargs -0 -r sha256sum", platform)
         elsewhere = [line.split(None, 1)[1] for line in res.stdout.splitlines()
                      if line.split(None, 1)[0] == digest and line.split(None, 1)[1] != path]
-    kept_state: dict[str, tuple[bool, bool | None]] = {}
-    for k in kept or []:
-        now = state.pull(k, platform)
-        base = state.baseline(k, platform)
-        kept_state[k] = (now is not None, None if base is None or now is None else now == base)
-    return check_deleted(path, still_there, elsewhere, kept_state)
+    return check_deleted(path, still_there, elsewhere, list(kept or []), changed_since_setup(state, kept, platform))
 
 
 # -- answers written into text files ----------------------------------------------------------------------------

@@ -22,6 +22,8 @@ class FinalState:
     devices: dict[str, Device]
     transfer: Any = None  # the transfer-drive client (list/download), when the task has one
     baselines: dict[tuple[str, str], bytes] = field(default_factory=dict)  # (platform, path) → bytes at set-up
+    ledger: Any = None    # what the drive received and served in the agent's turn (`ledger.DriveLedger`), if kept
+    chain: Any = None     # a transfer subtask's place in its graph (`tasks.transfer.TransferLinks`), if composed
     _files: dict[tuple[str, str], bytes | None] = field(default_factory=dict)
 
     def device(self, platform: str | None = None) -> Device:

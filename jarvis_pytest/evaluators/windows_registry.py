@@ -14,6 +14,11 @@ the branch it touches to a snapshot file (`reg export <key> <snapshot> /y`) and 
 later. Every value and key of the snapshot other than the ones the task asks for must still be there with the
 same type and data, and no other key or value may appear, except names the template allows (`may_change`: values
 Windows itself rewrites along with the asked one, e.g. the Settings app's transcoded wallpaper).
+
+Settings a program writes only when it exits (Minesweeper's field: winemine saves it to its key on exit) are not
+final while it runs: the registry may already hold the right values while the program holds others that it
+writes over them on exit. Such a template names the program (`owner`, its image name), its instruction says to
+quit it, and the evaluator fails while a process of that image runs (the process list read by the Windows probe).
 """
 
 from __future__ import annotations
@@ -29,8 +34,11 @@ from typing import Any, Iterable
 
 from jarvis_pytest.devices.platforms import PLATFORMS
 from jarvis_pytest.errors import InfrastructureError
+from jarvis_pytest.evaluators.folders import changed_since_setup
 from jarvis_pytest.evaluators.registry import Verdict, evaluator
 from jarvis_pytest.evaluators.state import FinalState
+from jarvis_pytest.evaluators.text import decode_text
+from jarvis_pytest.evaluators.windows_probe import probe
 
 WINDOWS = PLATFORMS["windows"]
 ROOTS = {"HKCU": "HKEY_CURRENT_USER", "HKLM": "HKEY_LOCAL_MACHINE", "HKCR": "HKEY_CLASSES_ROOT",
@@ -450,9 +458,37 @@ def check_values(now: Branch | None, how: str, key: str, expected: dict[str, tup
     return Verdict.check(not problems, want, found + (f" (read with {how})" if how else ""))
 
 
+EXIT_GRACE = 3.0  # seconds a program that shows no window more is given to finish the exit it began
+
+
+def still_running(state: FinalState, image: str, platform: str | None = None) -> list[dict]:
+    """The processes of the program `image` (e.g. winemine.exe) that run now. One that shows no window any more
+    is in the middle of exiting (an exit begun before evaluation): it is given EXIT_GRACE seconds to finish."""
+    deadline = time.monotonic() + EXIT_GRACE
+    while True:
+        facts = probe(state, processes=True, windows=True, platform=platform)
+        procs = [p for p in facts.get("processes", []) if str(p.get("name", "")).casefold() == image.casefold()]
+        shown = {w["pid"] for w in facts.get("windows", []) if w.get("visible")}
+        if not procs or any(p["pid"] in shown for p in procs) or time.monotonic() > deadline:
+            return procs
+        time.sleep(0.5)
+
+
+def check_owner_exited(verdict: Verdict, owner: str, running: list[dict], key: str) -> Verdict:
+    """`verdict` on the registry's values, failed when the program `owner` that writes them on exit still runs:
+    whatever the key holds now, that program overwrites it with its own values when it exits."""
+    if not running:
+        return verdict
+    want, _, found = verdict.reason.removeprefix("expected ").partition(", found ")
+    pids = ", ".join(str(p["pid"]) for p in running)
+    return Verdict.check(False, f"{want}, and {owner} exited (it writes its settings to {long_key(key)} when it "
+                         "exits)", f"{owner} still running (pid {pids}): on exit it writes the values it holds over "
+                         f"what the key holds now ({found})")
+
+
 def _judge(state: FinalState, key: str, values: dict[str, Any], absent: list[str], only: bool,
            baseline: str | None, branch: str | None, may_change: list[str] | None, means: dict | None,
-           platform: str | None) -> Verdict:
+           owner: str | None, platform: str | None) -> Verdict:
     try:
         expected = _expected(values, means)
     except ValueError as exc:
@@ -461,38 +497,43 @@ def _judge(state: FinalState, key: str, values: dict[str, Any], absent: list[str
     before, problem = baseline_branch(state, baseline, scope, platform)
     if problem:
         return Verdict.check(False, f"{long_key(key)} changed as asked, the rest as set up", problem)
+    running = still_running(state, owner, platform) if owner else []
     now, how = read_branch(state, scope, platform)
-    return check_values(now, how, key, expected, absent, only, before, scope, may_change or [])
+    verdict = check_values(now, how, key, expected, absent, only, before, scope, may_change or [])
+    return check_owner_exited(verdict, owner, running, key) if owner else verdict
 
 
 @evaluator("registry_values_are")
 def registry_values_are(state: FinalState, key: str, values: dict[str, list], absent: list[str] | None = None,
                         only: bool = False, baseline: str | None = None, branch: str | None = None,
                         may_change: list[str] | None = None, means: dict[str, Any] | None = None,
-                        platform: str | None = None) -> Verdict:
+                        owner: str | None = None, platform: str | None = None) -> Verdict:
     """The key `key` holds `values` ({name: [type, data]}; the name "(Default)" or "@" is the unnamed value) with
     exactly these types and data, and none of `absent`; with `only`, no other value. `means` maps a word of the
     instruction to the data it stands for (e.g. {"show": 0, "hide": 1}). With `baseline` (a snapshot `.reg` of
     `branch` — default `key` — made at set-up and listed under `baseline`), every other key and value of the branch
-    is as set up (`may_change`: value-name patterns Windows may rewrite along with the asked change)."""
-    return _judge(state, key, values, absent or [], only, baseline, branch, may_change, means, platform)
+    is as set up (`may_change`: value-name patterns Windows may rewrite along with the asked change). `owner`: the
+    image name of a program that writes these values when it exits (e.g. winemine.exe); it must have exited, since
+    while it runs the registry is not final (the instruction asks to quit it)."""
+    return _judge(state, key, values, absent or [], only, baseline, branch, may_change, means, owner, platform)
 
 
 @evaluator("registry_value_is")
 def registry_value_is(state: FinalState, key: str, name: str, type: str, data: Any, only: bool = False,
                       baseline: str | None = None, branch: str | None = None, may_change: list[str] | None = None,
-                      means: dict[str, Any] | None = None, platform: str | None = None) -> Verdict:
+                      means: dict[str, Any] | None = None, owner: str | None = None,
+                      platform: str | None = None) -> Verdict:
     """One value `name` of `key` is of `type` with `data` (see `registry_values_are`)."""
-    return _judge(state, key, {name: [type, data]}, [], only, baseline, branch, may_change, means, platform)
+    return _judge(state, key, {name: [type, data]}, [], only, baseline, branch, may_change, means, owner, platform)
 
 
 @evaluator("registry_value_absent")
 def registry_value_absent(state: FinalState, key: str, name: str, baseline: str | None = None,
                           branch: str | None = None, may_change: list[str] | None = None,
-                          platform: str | None = None) -> Verdict:
+                          owner: str | None = None, platform: str | None = None) -> Verdict:
     """The key `key` still exists but has no value `name`; with `baseline`, the rest of the branch is as set up
-    (the other values of the key kept with their types and data)."""
-    return _judge(state, key, {}, [name], False, baseline, branch, may_change, None, platform)
+    (the other values of the key kept with their types and data); `owner` as for `registry_values_are`."""
+    return _judge(state, key, {}, [name], False, baseline, branch, may_change, None, owner, platform)
 
 
 # -- the desktop wallpaper ---------------------------------------------------------------------------------------------
@@ -618,19 +659,15 @@ def reg_file_exports(state: FinalState, path: str, key: str, baseline: str, plat
 
 # -- text files Windows programs write (PowerShell, Notepad) ------------------------------------------------------------
 def decode_windows_text(data: bytes) -> tuple[str, str]:
-    """Text as Windows programs write it, and its encoding: UTF-16 LE/BE with a byte order mark (Windows
-    PowerShell's `Out-File` and `>`), UTF-8 with or without one (PowerShell 7, `Set-Content -Encoding utf8`), else
-    the ANSI code page (`Set-Content` in Windows PowerShell, cmd's `echo >`)."""
-    if data.startswith(b"\xff\xfe"):
-        return data[2:].decode("utf-16-le", errors="replace"), "UTF-16 LE"
-    if data.startswith(b"\xfe\xff"):
-        return data[2:].decode("utf-16-be", errors="replace"), "UTF-16 BE"
-    if data.startswith(b"\xef\xbb\xbf"):
-        return data[3:].decode("utf-8", errors="replace"), "UTF-8 with BOM"
+    """Text as Windows programs write it, and its encoding (`text.decode_text` with Windows' code page): UTF-16
+    LE/BE with a byte order mark (Windows PowerShell's `Out-File` and `>`), UTF-8 with or without one (PowerShell
+    7, `Set-Content -Encoding utf8`), else ANSI (`Set-Content` in Windows PowerShell, cmd's `echo >`). Bytes that
+    are none of them come back with undecodable bytes replaced, as "no text"."""
     try:
-        return data.decode("utf-8"), "UTF-8"
-    except UnicodeDecodeError:
-        return data.decode("cp1252", errors="replace"), "ANSI"
+        found = decode_text(data, WINDOWS.text_codepage)
+    except ValueError as exc:
+        return data.decode("cp1252", errors="replace"), f"no text ({exc})"
+    return found.text, found.encoding
 
 
 def check_text_value(data: bytes, expected: str, ignore_case: bool = False, label: str = "") -> Verdict:
@@ -644,24 +681,12 @@ def check_text_value(data: bytes, expected: str, ignore_case: bool = False, labe
     return Verdict.check(ok, want, f"{shown!r} ({encoding}, {len(data)} bytes)")
 
 
-def changed_since_setup(state: FinalState, paths: list[str] | None, platform: str | None = None) -> list[str]:
-    """Those of `paths` (listed under `baseline`) that are gone or whose bytes changed since set-up."""
-    out = []
-    for p in paths or []:
-        before = state.baseline(p, platform)
-        if before is None:
-            continue  # not captured (e.g. made upstream): nothing to compare with
-        now = state.pull(p, platform)
-        if now != before:
-            out.append(f"{p} {'deleted' if now is None else 'changed'}")
-    return out
-
-
 @evaluator("text_file_holds")
 def text_file_holds(state: FinalState, path: str, expected: Any, ignore_case: bool = False,
                     unchanged: list[str] | None = None, platform: str | None = None) -> Verdict:
     """The text file `path` holds just `expected` (a number or a word; white space around it aside), in any
-    encoding PowerShell or cmd writes; the files `unchanged` (listed under `baseline`) are as set up."""
+    encoding PowerShell or cmd writes; the files `unchanged` (listed under `baseline`) are as set up
+    (`changed_since_setup`)."""
     data = state.pull(path, platform)
     want = f"a text file holding just {str(expected)!r}"
     if data is None:

@@ -2,7 +2,7 @@
 UTF-16 little- or big-endian with its BOM) and line ending (CRLF by default), as Notepad reads and writes them.
 
 `ENCODINGS` names each encoding as Notepad's Save As dialog does and gives its codec and byte order mark; the
-Windows text evaluators (`jarvis_pytest/evaluators/windows_text.py`) use the same table.
+plain-text evaluators (`jarvis_pytest/evaluators/text.py`) use the same table.
 """
 
 from __future__ import annotations

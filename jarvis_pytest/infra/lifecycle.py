@@ -21,12 +21,13 @@ import threading
 import time
 from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 from jarvis_pytest.devices.backend import Backend, backend_for
 from jarvis_pytest.devices.base import Device
 from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.infra import containers as ctr
+from jarvis_pytest.infra import drive_ledger
 from jarvis_pytest.infra import egress as egress_policy
 from jarvis_pytest.infra import engines
 from jarvis_pytest.infra.networks import KeptDrive, TaskNetworks, remove_network
@@ -70,8 +71,24 @@ class TaskEnvironment:
     boot_started: float = 0.0             # wall-clock time (time.time()) its boot began
     networks: TaskNetworks | None = None  # where its network came from (None: removed with it)
     holders: dict[str, ctr.PortHolder] = field(default_factory=dict)  # platform → holder its device ran in
+    ledger_signal: str | None = None      # asks the drive for a mark in its ledger (None: it keeps none)
     _booted: list[Any] = field(default_factory=list)
     _closed: bool = False
+
+    def mark_drive(self) -> int | None:
+        """A mark in the drive's ledger of what it received and served (`infra/drive_ledger.py`), once everything
+        before it is recorded; None when the drive keeps no ledger."""
+        if self.ledger_signal is None:
+            return None
+        return drive_ledger.mark(self.containers[TRANSFER_ROLE], self.ledger_signal)
+
+    def drive_ledger(self) -> tuple[str, Callable[[str], bytes | None]] | None:
+        """The drive's ledger (its JSON lines) and a reader of the bytes it kept by SHA-256; None when it keeps
+        none."""
+        if self.ledger_signal is None:
+            return None
+        drive = self.containers[TRANSFER_ROLE]
+        return drive_ledger.read_events(drive), lambda sha: drive_ledger.read_object(drive, sha)
 
     def describe(self) -> str:
         """How to reach and remove the environment by hand (for --keep-devices)."""
@@ -349,4 +366,4 @@ class Lifecycle:
                                stand_ins=tuple(p for p, b in backends.items() if b.stand_in),
                                egress=self.egress, volumes=volumes, _booted=list(booted.values()),
                                engine=engines.name(self.docker_host), worker=self.worker, boot_started=boot_started,
-                               networks=self.networks, holders=holders)
+                               networks=self.networks, holders=holders, ledger_signal=self.server.mark_signal)

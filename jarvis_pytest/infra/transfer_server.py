@@ -48,6 +48,9 @@ class TransferServer:
     # `generation N` on standard output, alone there (`fixtures/images/transfer/drive.py`). None: the flavour
     # cannot be renewed, and each task gets a new container
     renew_signal: str | None = None
+    # sent to the drive's PID 1 for a mark in the drive's ledger of what it received and served
+    # (`fixtures/images/transfer/ledger.py`, read by `infra/drive_ledger.py`). None: the flavour keeps no ledger
+    mark_signal: str | None = None
     booted_memory_mb: int = 64            # about what a started drive holds (copyparty: 37 MB idle)
 
 
@@ -78,14 +81,26 @@ def _alist() -> TransferServer:
 
 def _copyparty() -> TransferServer:
     return TransferServer(flavour="copyparty", image=image_tag("transfer"), client=CopypartyClient,
-                          renew_signal="SIGUSR1")
+                          renew_signal="SIGUSR1", mark_signal="SIGUSR2")
+
+
+def drive_said(container: Any) -> tuple[int, int]:
+    """(generation, mark) of the drive's last word: `generation N` → (N, 0), the ledger's `mark N M` → (N, M);
+    (0, 0) before any. Read from the container's standard output, which the drive's own users cannot write to
+    (its servers write to stderr)."""
+    last = container.logs(stdout=True, stderr=False, tail=1).decode(errors="replace").split()
+    if not all(word.isdigit() for word in last[1:]):
+        return 0, 0
+    if len(last) == 2 and last[0] == "generation":
+        return int(last[1]), 0
+    if len(last) == 3 and last[0] == "mark":
+        return int(last[1]), int(last[2])
+    return 0, 0
 
 
 def served_generation(container: Any) -> int:
-    """How many servers the drive's PID 1 has started: its last `generation N` line (0: none yet). Read from the
-    container's standard output, which the drive's own users cannot write to (its servers write to stderr)."""
-    last = container.logs(stdout=True, stderr=False, tail=1).decode(errors="replace").split()
-    return int(last[1]) if len(last) == 2 and last[0] == "generation" and last[1].isdigit() else 0
+    """How many servers the drive's PID 1 has started (0: none yet); see `drive_said`."""
+    return drive_said(container)[0]
 
 
 FLAVOURS: dict[str, Callable[[], TransferServer]] = {"copyparty": _copyparty, "alist": _alist}

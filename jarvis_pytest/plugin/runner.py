@@ -14,7 +14,7 @@ from jarvis_pytest.devices.actions import PLATFORMS
 from jarvis_pytest.infra.transfer_server import (TRANSFER_ALIAS, TRANSFER_FOLDER, TRANSFER_PASSWORD, TRANSFER_PORT,
                                                  TRANSFER_USER)
 from jarvis_pytest.errors import ConfigError, InfrastructureError, retry_device_faults
-from jarvis_pytest.plugin.evaluation import capture_baselines, evaluate_subtasks
+from jarvis_pytest.plugin.evaluation import DriveWatch, capture_baselines, evaluate_subtasks
 from jarvis_pytest.plugin import idle
 from jarvis_pytest.plugin.idle import idle_observation
 from jarvis_pytest.plugin.loop import LoopLimits, LoopOutcome, run_loop
@@ -23,6 +23,7 @@ from jarvis_pytest.report.failure_modes import classify
 from jarvis_pytest.results.model import TaskResult
 from jarvis_pytest.results.writer import TaskRecorder
 from jarvis_pytest.tasks.model import Task
+from jarvis_pytest.tasks.transfer import is_transfer
 
 
 def agent_key(agent_config: dict[str, Any], limits: LoopLimits) -> str:
@@ -102,8 +103,11 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
         t_boot = time.monotonic()
         run_setup(subtasks, env.devices)
         baselines = capture_baselines(subtasks, env.devices)
+        drive = DriveWatch(env, task)
         if ctx.qc:
-            result.qc_initial = evaluate_subtasks(subtasks, env.devices, env.transfer, baselines)
+            result.qc_initial = evaluate_subtasks(subtasks, env.devices, env.transfer, baselines, task.edges,
+                                                  drive.turn())
+        drive.start()
         t_setup = time.monotonic()
         transfer = {"url": f"http://{TRANSFER_ALIAS}:{TRANSFER_PORT}", "user": TRANSFER_USER,
                     "password": TRANSFER_PASSWORD, "folder": TRANSFER_FOLDER,
@@ -118,13 +122,21 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
             recorder.screenshot(outcome.steps, platform, device.observe().screenshot_png)
         t_loop = time.monotonic()
         result.steps, result.end_reason, result.usage = outcome.steps, outcome.end_reason, outcome.usage
-        result.subtasks = evaluate_subtasks(subtasks, env.devices, env.transfer, baselines)
+        turn = drive.turn()
+        result.subtasks = evaluate_subtasks(subtasks, env.devices, env.transfer, baselines, task.edges, turn)
+        if turn is not None:
+            recorder.drive_ledger(turn.window())
         t_eval = time.monotonic()
-        if ctx.qc and task.category == "atomic":  # negatives belong to templates; composed tasks have none
+        if ctx.qc and task.category == "atomic":  # negatives belong to templates
             from jarvis_pytest.plugin.negatives import run_negatives
 
             env.close()
             result.qc_negatives = run_negatives(subtasks, platforms, ctx.environments)
+        elif ctx.qc and any(is_transfer(s.template) for s in subtasks):  # a composed task's broken chains
+            from jarvis_pytest.plugin.chain_negatives import run_chain_negatives
+
+            env.close()
+            result.qc_negatives = run_chain_negatives(task, platforms, ctx.environments)
         result.status = "passed" if _passed(result) else "failed"
         if result.status == "failed" and result.qc_initial is None:
             result.failure_mode = classify(result.subtasks, result.edges, outcome.end_reason, recorder.acted_on)

@@ -53,6 +53,10 @@ class NegativeVerdict(BaseModel):
     error: str | None = None  # the negative's steps could not be applied (a broken negative is a violation too)
     verdicts: list[SubtaskVerdict] = Field(default_factory=list)
     device_faults: list[str] = Field(default_factory=list)  # faults of the devices, each tried again on fresh ones
+    # a composed task's broken chain (`plugin/chain_negatives.py`): the subtasks that must fail on it, and the steps
+    # that failed because the chain is broken (expected; the rest of the plan went on)
+    expect: list[int] | None = None
+    step_errors: list[str] = Field(default_factory=list)
 
 
 class StepRecord(BaseModel):

@@ -70,6 +70,11 @@ class TaskRecorder:
         if record.action is not None and record.platform:
             self.acted_on.add(record.platform)
 
+    def drive_ledger(self, records: list[dict]) -> None:
+        """What the transfer drive received and served during the agent's turn (`drive_ledger.jsonl`)."""
+        with open(self.dir / "drive_ledger.jsonl", "w", encoding="utf-8") as f:
+            f.writelines(json.dumps(r, sort_keys=True) + "\n" for r in records)
+
     def save_result(self) -> None:
         write_json_atomic(self.dir / "result.json", self.result.model_dump(mode="json"))
 

@@ -135,39 +135,7 @@ def build(draft: Draft) -> Built:
         index[n] = len(subs) - 1
         edges += [Edge(from_=src, to=(index[n], inp)) for src, inp in pending]
     edges.sort(key=lambda e: (e.from_, e.to))
-    _mark_copies_changed_later(subs)
     return Built(subs, edges, index)
-
-
-def _changed_by_another(subs: list[Subtask], platform: str, path: str, other_than: int) -> bool:
-    """Whether a subtask other than `other_than` edits `path` on `platform` in place (an output at the same path)
-    or consumes it (moves or deletes it): its final content is then no longer the one the transfer carried."""
-    for j, sub in enumerate(subs):
-        if j == other_than or sub.platform != platform:
-            continue
-        names = [name for name, slot in sub.input.items() if str(slot.value) == path]
-        if names and (any(n in sub.consumes for n in names)
-                      or any(str(out.value) == path for out in sub.output.values())):
-            return True
-    return False
-
-
-def _mark_copies_changed_later(subs: list[Subtask]) -> None:
-    """A transfer's evaluator compares the source and the destination with the drive's copy; where another
-    subtask edits or consumes one of them on purpose (e.g. converts the received file's line breaks), that side
-    is marked and compared no more (the drive's copy still has to hold the source's bytes, or the destination
-    the drive's)."""
-    for t, sub in enumerate(subs):
-        if not is_transfer(sub.template):
-            continue
-        for spec in sub.evaluate:
-            if spec.func != "transfer_arrived_unchanged":
-                continue
-            src, dst = spec.args["source"], spec.args["path"]
-            if _changed_by_another(subs, spec.args["source_platform"], src, t):
-                spec.args["source_changes_later"] = True
-            if _changed_by_another(subs, sub.platform, dst, t):
-                spec.args["destination_changes_later"] = True
 
 
 def _valid(built: Built, library: Library) -> bool:

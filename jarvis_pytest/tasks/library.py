@@ -14,12 +14,13 @@ import json
 import random
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Collection, Iterable
+from typing import Any, Collection, Iterable, Mapping
 
 from pydantic import ValidationError
 
 from jarvis_pytest.devices.actions import PLATFORMS
 from jarvis_pytest.errors import ConfigError
+from jarvis_pytest.tasks.evaluator_args import check_evaluator_args, slot_samples
 from jarvis_pytest.tasks.instances import check_pattern, materialise, sample_inputs
 from jarvis_pytest.tasks.model import TaskTemplate
 from jarvis_pytest.tasks.templating import Where, find_placeholders, walk_strings
@@ -215,7 +216,7 @@ def validate_template(tpl: TaskTemplate, types: TypeSystem, *, path: object = No
         if not types.is_file(tpl.inputs[name].type):
             raise fail(f"consumes.{name}", f"only file inputs can be consumed ({name!r} is {tpl.inputs[name].type!r})",
                        "remove it from consumes")
-    check_names(tpl.evaluate, tpl.config, where, evaluators)
+    check_names(tpl.evaluate, tpl.config, where, evaluators, samples=slot_samples(tpl))
     if tpl.backends:
         from jarvis_pytest.devices.backend import ALIASES, BUILTIN
 
@@ -264,11 +265,13 @@ def fixture_problem(name: str, root: Path = FIXTURE_FILES, *, must_exist: bool =
     return None
 
 
-def check_names(evaluate: list, config: list, where: Where, evaluators: Collection[str] | None = None) -> None:
-    """Every evaluator and file generator named by a template or subtask exists (default: the registries)."""
-    if evaluators is None:
-        from jarvis_pytest.evaluators import EVALUATORS
+def check_names(evaluate: list, config: list, where: Where, evaluators: Collection[str] | None = None,
+                samples: Mapping[str, tuple[Any, ...]] | None = None) -> None:
+    """Every evaluator and file generator named by a template or subtask exists (default: the registries), and
+    every evaluator's arguments fit its signature (`evaluator_args`; `samples`: a template's slot values)."""
+    from jarvis_pytest.evaluators import EVALUATORS
 
+    if evaluators is None:
         evaluators = EVALUATORS
     from jarvis_pytest.generators import GENERATORS
 
@@ -282,6 +285,10 @@ def check_names(evaluate: list, config: list, where: Where, evaluators: Collecti
             raise where.at(f"config[{i}].generator").error(
                 f"unknown file generator {step.generator!r}", f"use one of {sorted(GENERATORS)} or register it in "
                 "jarvis_pytest/generators/")
+    # the functions as registered now (a bare set of names: those of them the registry has)
+    functions = evaluators if isinstance(evaluators, Mapping) else \
+        {name: EVALUATORS[name] for name in evaluators if name in EVALUATORS}
+    check_evaluator_args(evaluate, where, functions, samples)
 
 
 def negative_problems(tpl: TaskTemplate) -> list[str]:

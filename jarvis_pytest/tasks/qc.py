@@ -2,7 +2,9 @@
 
 For every task instance every evaluator must fail on the freshly set-up device, the task must fail on each of its
 near-miss wrong states (`negatives`: at least an `artefact` and one wrong, partial or damaging operation), and it
-must pass after the oracle. The gate
+must pass after the oracle. A composed task (`--composed`) must fail on the fresh devices and pass after the
+oracle too, and each of its broken chains (`plugin/chain_negatives.py`) must fail it at the subtask meant to catch
+it. The gate
 runs as a benchmark run (`pytest tasks/test_atomic.py --qc`, so it has the harness's parallelism, pre-warming,
 results and --resume), then prints one row per instance and exits non-zero on any violation or error.
 """
@@ -31,23 +33,37 @@ def _state(verdicts: list[SubtaskVerdict] | None, want: bool) -> str:
     return ("pass" if want else "fail") if good else ("FAIL" if want else "PASS")
 
 
+def negative_violation(n: Any) -> str | None:
+    """Why one negative violates the gate (it could not be applied, or the evaluators accept it; a composed task's
+    broken chain also when the subtask meant to catch it passes), or None."""
+    if n.error:
+        return f"negative {n.index} ({n.note}) could not be applied: {n.error.splitlines()[0]}"
+    if not n.passed:
+        return None
+    if n.expect is None:
+        return f"negative {n.index} passes ({n.kind}: {n.note}): the evaluators accept this wrong state"
+    held = [f"{i} ({n.verdicts[i].template})" for i in n.expect if n.verdicts[i].passed]
+    chain = n.kind.removeprefix("chain:")
+    return (f"broken chain {chain} ({n.note}) passes at subtask {', '.join(held)}" if held
+            else f"broken chain {chain} ({n.note}) passes the task")
+
+
 def _negatives(result: TaskResult) -> tuple[str, str]:
-    """The negatives column ("2/2 fail", or how many PASS) and the first violation's reason ("" when none)."""
+    """The negatives column ("2/2 fail", or how many PASS; for a composed task's broken chains "5/5 caught", or
+    how many NOT CAUGHT) and the first violation's reason ("" when none)."""
     negs = result.qc_negatives
     if negs is None:
         return "-", ""
+    chains = any(n.expect is not None for n in negs)
+    rejected = sum(negative_violation(n) is None for n in negs)
+    good, bad = ("caught", "NOT CAUGHT") if chains else ("fail", "PASS")
+    cell = f"{rejected}/{len(negs)} {good}" if rejected == len(negs) else f"{len(negs) - rejected}/{len(negs)} {bad}"
+    reason = next((why for n in negs if (why := negative_violation(n))), "")
     kinds = {n.kind for n in negs}
-    rejected = sum(not n.passed and not n.error for n in negs)
-    cell = f"{rejected}/{len(negs)} fail" if rejected == len(negs) else f"{len(negs) - rejected}/{len(negs)} PASS"
-    for n in negs:
-        if n.error:
-            return cell, f"negative {n.index} ({n.note}) could not be applied: {n.error.splitlines()[0]}"
-        if n.passed:
-            return cell, f"negative {n.index} passes ({n.kind}: {n.note})"
-    if "artefact" not in kinds or not kinds - {"artefact"}:
+    if not reason and not chains and ("artefact" not in kinds or not kinds - {"artefact"}):
         return cell + " (too few)", ("needs negatives of kind `artefact` and of `wrong`/`partial`/`damage` "
                                       f"(has {sorted(kinds) or 'none'})")
-    return cell, ""
+    return cell, reason
 
 
 def qc_row(result: TaskResult) -> dict[str, str]:
@@ -88,6 +104,21 @@ def render_table(rows: list[dict[str, str]]) -> str:
     return "\n".join(lines)
 
 
+def chain_table(results: list[TaskResult]) -> str:
+    """Per kind of broken chain: on how many tasks it was made, and how many of those it failed at the subtask
+    meant to catch it ("" when no task had one)."""
+    made: dict[str, list[bool]] = {}
+    for result in results:
+        for n in result.qc_negatives or []:
+            if n.expect is not None:
+                made.setdefault(n.kind.removeprefix("chain:"), []).append(not n.passed and not n.error)
+    if not made:
+        return ""
+    lines = ["| broken chain | tasks | caught at the right subtask |", "|---|--:|--:|"]
+    lines += [f"| {kind} | {len(got)} | {sum(got)} |" for kind, got in made.items()]
+    return "\n".join(lines)
+
+
 def pytest_argv(args: argparse.Namespace, run_dir: Path) -> list[str]:
     """The benchmark run that performs the gate."""
     module = "test_composed.py" if args.composed else "test_atomic.py"
@@ -116,6 +147,9 @@ def run_qc(args: argparse.Namespace) -> int:
         return 2 if proc.returncode == 4 else (proc.returncode or 1)  # a usage error is the command's usage error
     rows = [qc_row(r) for r in results]
     table = render_table(rows)
+    chains = chain_table(results)
+    if chains:
+        table += "\n\n" + chains
     (run_dir / "qc.md").write_text(table + "\n", encoding="utf-8")
     print(table)
     for p in problems:
@@ -133,7 +167,8 @@ def register(sub: Any) -> None:
     p.add_argument("-n", default=None, metavar="N", help="parallel workers (pytest-xdist), e.g. 2 or auto")
     p.add_argument("--instances", type=int, default=2, help="seeded instances per template (default 2)")
     p.add_argument("--composed", action="store_true", help="gate the composed tasks of the datasets instead: every "
-                   "subtask evaluator fails on the fresh devices, the whole task passes after the oracle")
+                   "subtask evaluator fails on the fresh devices, the whole task passes after the oracle, and each "
+                   "broken chain of its transfers fails at the transfer")
     p.add_argument("--dataset", action="append", type=Path, metavar="FILE",
                    help="with --composed: these dataset files (default tasks/composed/*.json)")
     p.add_argument("--library", type=Path, default=REPO_ROOT / "tasks", help="template folder (default tasks/)")

@@ -160,6 +160,10 @@ class Handler(ControlHandler):
         """Bring the application window whose title contains `title` to the front (waiting up to `timeout` s for it
         to show); 404 when none does."""
         req = self._request("focus")
+        if req["id"] is not None:
+            raise HttpError(400, "invalid request: focus.id names a window on Windows devices only; give `title`")
+        if req["title"] is None:
+            raise HttpError(400, "invalid request: focus.title: field required")
         deadline = time.monotonic() + req["timeout"]
         while True:
             found = DEVICES.screen.focus(req["title"])

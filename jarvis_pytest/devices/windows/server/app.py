@@ -8,7 +8,7 @@ from __future__ import annotations
 import time
 
 from jarvis_pytest.devices.control_http import (ControlHandler, ControlServer, HttpError, Lazy, execute,
-                                                readiness_within, wait_for_window)
+                                                readiness_within)
 
 PLATFORM = "windows"
 
@@ -33,12 +33,6 @@ def _pyautogui(script: str) -> None:
 
     kb = DEVICES.input
     run_script(script, kb, kb.position, DEVICES.screen.size)
-
-
-def _app_windows() -> dict[int, str]:
-    from .desktop import app_windows
-
-    return app_windows()
 
 
 def _shell_readiness() -> dict[str, bool]:
@@ -153,8 +147,8 @@ class Handler(ControlHandler):
 
     def launch(self) -> None:
         """Start a program; with `window_wait`, answer once a new application window shows or an existing one
-        changed its title, so the next screenshot shows the program."""
-        from .desktop import app_windows
+        changed its title, so the next screenshot shows the program; `id` names that window."""
+        from .desktop import app_windows, new_window
         from .system import launch
 
         req = self._request("launch")
@@ -166,29 +160,56 @@ class Handler(ControlHandler):
                                  "notepad, wordpad, regedit, explorer, cmd, taskmgr, or a full path)") from None
         except OSError as exc:
             raise HttpError(400, f"cannot start {req['app']!r}: {exc}") from None
-        self._json(200, {"ok": True, "window": wait_for_window(_app_windows, before, req["window_wait"])})
+        self._window_shown(new_window(before, req["window_wait"]))
+
+    def _window_shown(self, hwnd: int | None) -> None:
+        self._json(200, {"ok": True, "window": hwnd is not None, "id": hwnd})
 
     def focus(self) -> None:
-        """Bring the application window whose title contains `title` to the front (waiting up to `timeout` s for it
-        to show); 404 when none does."""
-        from .desktop import focus
+        """Bring a window to the front: the one `id` names (with `title`: once it shows that title, e.g. a program
+        launched a moment ago that is still loading its file), else the newest application window whose title shows
+        `title` (`desktop.newest`), waiting up to `timeout` s for it; 404 when there is none. A foreground that is
+        already the window's own (it, a menu it opened, a dialog it shows) is left as it is. Answers once the
+        foreground is the window's own (409 when it does not become so): `id`, `title`, `pid` of the window,
+        `changed` (whether the foreground had to move) and `before` (the foreground window then)."""
+        from jarvis_pytest.devices.control_http import title_matches
+
+        from . import win32 as w
+        from .desktop import belongs_to, bring_to_front, describe, newest, shows
 
         req = self._request("focus")
+        title, hwnd = req["title"], req["id"]
+        if title is None and hwnd is None:
+            raise HttpError(400, "invalid request: focus needs `title` or `id`")
         deadline = time.monotonic() + req["timeout"]
         while True:
-            found = focus(req["title"])
-            if found or time.monotonic() >= deadline:
+            if hwnd is not None:
+                found = hwnd if shows(hwnd) and (title is None or title_matches(title, w.window_text(hwnd))) else None
+            else:
+                found = newest(title)
+            if found or time.monotonic() >= deadline or (hwnd is not None and not shows(hwnd)):
                 break
             time.sleep(0.1)
         if not found:
-            raise HttpError(404, f"no window whose title contains {req['title']!r}")
-        self._json(200, {"ok": True, "window": True, "title": found["title"]})
+            if hwnd is None:
+                raise HttpError(404, f"no window whose title contains {title!r}")
+            raise HttpError(404, f"window {hwnd} is gone" if not shows(hwnd) else
+                            f"window {hwnd} does not show {title!r} (its title: {w.window_text(hwnd)!r})")
+        fg = w.GetForegroundWindow() or 0
+        before = describe(fg)
+        changed = not belongs_to(fg, found)
+        if changed and not bring_to_front(found):
+            now = describe(w.GetForegroundWindow() or 0)
+            raise HttpError(409, f"window {found} ({w.window_text(found)!r}) could not be brought to the front: the "
+                                 f"foreground is {now['title']!r} ({now['class']}, window {now['id']}, process "
+                                 f"{now['pid']})")
+        self._json(200, {"ok": True, "window": True, **describe(found), "changed": changed, "before": before})
 
     def open(self) -> None:
         """Open a file or folder with its associated program and wait like `launch`."""
         import os
 
-        from .desktop import app_windows
+        from .desktop import app_windows, new_window
         from .system import PathError, open_path, windows_path
 
         req = self._request("open")
@@ -203,7 +224,7 @@ class Handler(ControlHandler):
             open_path(path)
         except OSError as exc:
             raise HttpError(400, str(exc)) from None
-        self._json(200, {"ok": True, "window": wait_for_window(_app_windows, before, req["window_wait"])})
+        self._window_shown(new_window(before, req["window_wait"]))
 
     def windows(self) -> None:
         from .desktop import windows

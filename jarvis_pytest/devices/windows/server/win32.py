@@ -158,6 +158,7 @@ GetWindowLongW = _fn(user32, "GetWindowLongW", W.LONG, W.HWND, ctypes.c_int)
 GetWindowThreadProcessId = _fn(user32, "GetWindowThreadProcessId", W.DWORD, W.HWND, ctypes.POINTER(W.DWORD))
 GetForegroundWindow = _fn(user32, "GetForegroundWindow", W.HWND)
 SetForegroundWindow = _fn(user32, "SetForegroundWindow", W.BOOL, W.HWND)
+GetLastActivePopup = _fn(user32, "GetLastActivePopup", W.HWND, W.HWND)
 ShowWindow = _fn(user32, "ShowWindow", W.BOOL, W.HWND, ctypes.c_int)
 SW_RESTORE = 9
 GetGUIThreadInfo = _fn(user32, "GetGUIThreadInfo", W.BOOL, W.DWORD, ctypes.POINTER(GUITHREADINFO))
@@ -192,6 +193,8 @@ GlobalFree = _fn(kernel32, "GlobalFree", W.HGLOBAL, W.HGLOBAL)
 GlobalSize = _fn(kernel32, "GlobalSize", ctypes.c_size_t, W.HGLOBAL)
 WaitForInputIdle = _fn(user32, "WaitForInputIdle", W.DWORD, W.HANDLE, W.DWORD)
 GetProcessId = _fn(kernel32, "GetProcessId", W.DWORD, W.HANDLE)
+GetProcessTimes = _fn(kernel32, "GetProcessTimes", W.BOOL, W.HANDLE, ctypes.POINTER(W.FILETIME),
+                      ctypes.POINTER(W.FILETIME), ctypes.POINTER(W.FILETIME), ctypes.POINTER(W.FILETIME))
 OpenProcess = _fn(kernel32, "OpenProcess", W.HANDLE, W.DWORD, W.BOOL, W.DWORD)
 QueryFullProcessImageNameW = _fn(kernel32, "QueryFullProcessImageNameW", W.BOOL, W.HANDLE, W.DWORD, W.LPWSTR,
                                  ctypes.POINTER(W.DWORD))
