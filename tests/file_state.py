@@ -39,7 +39,7 @@ def _posix_record(path: str, data: bytes | None, is_dir: bool) -> str:
 
 def posix_facts_reply(command: str, files: dict[str, bytes]) -> str | None:
     """What the POSIX file-facts script (`file_facts.posix_script`) prints for `files`, or None when `command` is
-    not that script. The trash is empty."""
+    not that script: entries, trees and a search for files of given sizes. The trash is empty."""
     if not command.startswith("f() {"):
         return None
     out = []
@@ -57,6 +57,11 @@ def posix_facts_reply(command: str, files: dict[str, bytes]) -> str | None:
             for rel, data in held.items():
                 if depth is None or rel.count("/") < int(depth):
                     out.append(f"T{i} " + _posix_record(f"{root.rstrip('/')}/{rel}", data, data is None))
+        elif m := re.match(r"if \[ -d (.+?) \]; then find -H .* -type f \\\( (.*) \\\) ", line):
+            root, sizes = shlex.split(m.group(1))[0], {int(n) for n in re.findall(r"-size (\d+)c", m.group(2))}
+            for rel, data in _under(files, root, "/").items():
+                if data is not None and len(data) in sizes:
+                    out.append("S " + _posix_record(f"{root.rstrip('/')}/{rel}", data, False))
     return "\n".join(out) + "\n"
 
 
@@ -82,6 +87,10 @@ def probe_reply(command: str, files: dict[str, bytes]) -> bool:
         held = _under(files, root, "\\")
         out["trees"][root] = {rel: _probe_entry(data, data is None) for rel, data in held.items()
                               if depth is None or rel.count("\\") < depth} if held else None
+    if req.get("search"):
+        sizes = set(req.get("sizes", []))
+        out["found"] = {root.rstrip("\\") + "\\" + rel: _probe_entry(data, False) for root in req["search"]
+                        for rel, data in _under(files, root, "\\").items() if data is not None and len(data) in sizes}
     files[m.group(3)] = json.dumps(out).encode("utf-8")
     return True
 

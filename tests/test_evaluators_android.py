@@ -447,28 +447,43 @@ def test_photo_taken():
         assert v.passed is ok and needle in v.reason, (needle, v.reason)
 
 
-def test_file_deleted_not_moved():
-    ev = get_evaluator("android_file_deleted")
+def test_file_deleted_not_moved_hidden_or_kept_elsewhere():
+    """The neutral `file_deleted` on Android (files_delete_screenshot): removed, or in MediaStore's trash (renamed
+    `.trashed-<expiry>-<name>` in its own folder), passes; its bytes kept anywhere a user or the shell may keep files
+    (PlatformSpec.user_roots), under a hidden name, or as a fake trash name elsewhere, fail; the neighbours must be
+    unchanged."""
+    ev = get_evaluator("file_deleted")
     shot, keep = b"\x89PNG shot", b"\x89PNG keep"
-    path, kept = "/sdcard/Pictures/Screenshots/s.png", "/sdcard/Pictures/Screenshots/k.png"
-    import hashlib
-
-    digest = hashlib.sha256(shot).hexdigest()
+    folder = "/sdcard/Pictures/Screenshots"
+    path, kept = f"{folder}/s.png", f"{folder}/k.png"
     base = {path: shot, kept: keep}
-    gone = FakeAndroid({r"^find /sdcard ": ""}, files={kept: keep})
-    assert ev(state_of(gone, base), path=path, kept=[kept]).passed
-    trashed = FakeAndroid({r"^find /sdcard ": f"{digest}  /sdcard/Pictures/Screenshots/.trashed-1700-s.png\n"},
-                          files={kept: keep})
-    assert ev(state_of(trashed, base), path=path, kept=[kept]).passed
-    moved = FakeAndroid({r"^find /sdcard ": f"{digest}  /sdcard/Download/s.png\n"}, files={kept: keep})
-    v = ev(state_of(moved, base), path=path, kept=[kept])
-    assert not v.passed and "its content still at /sdcard/Download/s.png" in v.reason
-    both = FakeAndroid({r"^find /sdcard ": ""}, files={})
-    assert "k.png: gone" in ev(state_of(both, base), path=path, kept=[kept]).reason
-    damaged = FakeAndroid({r"^find /sdcard ": ""}, files={kept: b"\x89PNG other"})
-    assert "k.png: it holds other content" in ev(state_of(damaged, base), path=path, kept=[kept]).reason
-    still = FakeAndroid(files={path: b"", kept: keep})
-    assert "still there" in ev(state_of(still, base), path=path, kept=[kept]).reason
+
+    def verdict(files: dict[str, bytes], baselines=base):
+        return ev(state_of(FakeAndroid(files={kept: keep, **files}), baselines), path=path, kept=[kept])
+
+    assert verdict({}).passed
+    assert verdict({f"{folder}/.trashed-1700000000-s.png": shot}).passed  # MediaStore's trash
+    for where in ("/sdcard/Download/s.png", f"{folder}/.s.png", "/data/local/tmp/s.png",
+                  "/sdcard/Download/.trashed-1700000000-s.png", f"{folder}/.trashed-1700000000-other.png",
+                  f"{folder}/.trashed-soon-s.png"):
+        v = verdict({where: shot})
+        assert not v.passed and f"its content still at {where}" in v.reason, (where, v.reason)
+    assert "(hidden)" in verdict({f"{folder}/.s.png": shot}).reason
+    v = verdict({path: b""})  # emptied, not deleted
+    assert not v.passed and f"{path} still there (a file of 0 bytes)" in v.reason
+    assert "k.png: gone" in ev(state_of(FakeAndroid(files={}), base), path=path, kept=[kept]).reason
+    assert "k.png: it holds other content" in verdict({kept: b"\x89PNG other"}).reason
+    # fed by an upstream subtask (no baseline): a file with its bytes may rightly be elsewhere (its source)
+    assert verdict({"/sdcard/Download/s.png": shot}, baselines={kept: keep}).passed
+    # a file that held the same bytes at set-up (listed under baseline) is no copy the agent made
+    twin = f"{folder}/twin.png"
+    assert verdict({twin: shot}, baselines={**base, twin: shot}).passed
+    sent = FakeAndroid(files={kept: keep})
+    ev(state_of(sent, base), path=path, kept=[kept])
+    script = next(c for c, _ in sent.sent if c.startswith("f() {"))
+    assert "find -H /sdcard -xdev -type f" in script and "find -H /data/local/tmp" in script
+    if MKSH:  # the command is valid for Android's shell
+        assert subprocess.run([MKSH, "-n", "-c", script]).returncode == 0
 
 
 @pytest.mark.parametrize("text, ok", [

@@ -1,12 +1,13 @@
 """The browser checks behind the Chromium templates (no containers): the bookmarks check reads Chromium's
 `Bookmarks` JSON in every folder, passes on the file a solved task leaves, fails on the fresh profile's state
 saying what it expected and found, rejects a file Chromium did not write (its checksum), and its wrapper waits for
-Chromium's delayed write only while Chromium runs. Then the file checks of the other Chromium templates: a
-download, a value read off a page, a saved page."""
+Chromium's delayed write only while Chromium runs; Edge's favourites are the same file, judged by the same check.
+Then the file checks of the other Chromium templates: a download, a value read off a page, a saved page."""
 
 from __future__ import annotations
 
 import json
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -15,7 +16,11 @@ from jarvis_pytest.evaluators import browser
 from jarvis_pytest.evaluators.browser import bookmarks, bookmarks_checksum, check_bookmark
 from jarvis_pytest.evaluators import get_evaluator
 from jarvis_pytest.evaluators.desktop import check_answer, check_saved_page
+from jarvis_pytest.tasks.instances import materialise
+from jarvis_pytest.tasks.model import TaskTemplate
 from tests.file_state import state_with
+
+TASKS = Path(__file__).resolve().parents[1] / "tasks"
 
 URL = "file:///home/user/site/status.html"
 
@@ -132,6 +137,40 @@ def test_the_wrapper_gives_up_after_the_settle_time(monkeypatch):
     state = FakeState(chromium_bookmarks(), appears_after=0)
     verdict = browser.bookmark_exists(state, URL, "Daily check")
     assert not verdict.passed and "no bookmarks" in verdict.reason and state.reads >= 1
+
+
+# -- Edge's favourites: the same file, with roots of Edge's own -----------------------------------------------------
+def edge_bookmarks(marks: list[tuple[str, str]], extra_root: bool = False, checksum: str | None = None) -> bytes:
+    folder = lambda name, kids, i: {"children": kids, "id": str(i), "name": name, "type": "folder"}  # noqa: E731
+    kids = [{"id": str(10 + i), "name": n, "type": "url", "url": u} for i, (n, u) in enumerate(marks)]
+    data = {"roots": {"bookmark_bar": folder("Favorites bar", kids, 1), "other": folder("Other favorites", [], 2),
+                      "synced": folder("Mobile favorites", [], 3)}, "version": 1}
+    if extra_root:
+        data["roots"]["workspaces"] = folder("Workspaces", [{"id": "50", "name": "w", "type": "url",
+                                                              "url": "https://example.com/"}], 4)
+    if checksum is None:
+        checksum = bookmarks_checksum(data, [*browser.ROOT_ORDER, "workspaces"]) if extra_root \
+            else bookmarks_checksum(data)
+    data["checksum"] = checksum
+    return json.dumps(data, indent=3).encode()
+
+
+def test_edge_favourite():
+    url = "file:///C:/Users/user/Documents/recipes.html"
+
+    def edge(data: bytes | None, name: str | None = "Read later"):
+        return check_bookmark(None if data is None else data.decode(), url, name, browser="Edge", kind="favourite")
+
+    assert edge(edge_bookmarks([("Read later", url)])).passed
+    assert edge(edge_bookmarks([("Read later", url)], extra_root=True)).passed  # Edge's own roots in its checksum
+    assert "edited by hand" in edge(edge_bookmarks([("Read later", url)], checksum="0" * 32)).reason
+    assert not edge(edge_bookmarks([("Weekly Recipes", url)])).passed
+    assert "no favourites file" in edge(None, None).reason
+    tpl = TaskTemplate.model_validate(json.loads((TASKS / "windows" / "edge_add_favorite.json").read_text()))
+    sub = materialise(tpl, {"page": "recipes", "title": "Weekly Recipes", "mark": "Read later"})
+    bookmarks_file = r"C:\Users\user\AppData\Local\Microsoft\Edge\User Data\Default\Bookmarks"
+    state = state_with({bookmarks_file: b"\xef\xbb\xbf" + edge_bookmarks([("Read later", url)])}, "windows")
+    assert all(get_evaluator(spec.func)(state, **spec.args).passed for spec in sub.evaluate)
 
 
 # -- download, value read off a page, saved page ----------------------------------------------------------------------

@@ -83,6 +83,34 @@ def test_posix_facts_of_files_folders_links_hidden_names_and_the_trash(tmp_path,
     assert "sub" in shallow and "sub/second name" not in shallow
 
 
+@pytest.mark.parametrize("tools", ["gnu", "toybox"])
+def test_posix_search_finds_files_of_a_size_at_any_depth_through_a_linked_root(tmp_path, tools):
+    """A search (`read_facts(search=, sizes=)`): every regular file of an asked size under the folders, hidden ones
+    and second names too; a folder given as a link (Android's /sdcard) is searched, links below it are not
+    followed; other sizes are not reported."""
+    path = os.environ["PATH"] if tools == "gnu" else toybox_path(tmp_path)
+    real = tmp_path / "storage"
+    (real / "Pictures" / ".hidden dir").mkdir(parents=True)
+    (real / "Pictures" / "a.png").write_bytes(b"12345")
+    (real / "Pictures" / ".hidden dir" / "b").write_bytes(b"abcde")
+    os.link(real / "Pictures" / "a.png", real / "second")
+    (real / "Pictures" / "small").write_bytes(b"123")
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (outside / "c").write_bytes(b"zzzzz")
+    (real / "linked").symlink_to(outside)
+    (real / "file link").symlink_to(outside / "c")
+    (tmp_path / "sdcard").symlink_to(real)
+    state = FinalState(platform="ubuntu", devices={"ubuntu": ShellHost(path)})
+    sd = str(tmp_path / "sdcard")
+    facts = read_facts(state, search=[sd, str(tmp_path / "no folder")], sizes=[5, 99])
+    assert sorted(facts.found) == [f"{sd}/Pictures/.hidden dir/b", f"{sd}/Pictures/a.png", f"{sd}/second"]
+    assert facts.found[f"{sd}/second"].links == 2 and facts.found[f"{sd}/second"].sha256 == hashlib.sha256(
+        b"12345").hexdigest()
+    assert facts.found[f"{sd}/Pictures/.hidden dir/b"].kind == "file"
+    assert read_facts(state, entries=[sd]).found is None  # no search asked
+
+
 def test_only_the_desktops_own_files_are_passed_over():
     windows, ubuntu = PLATFORMS["windows"], PLATFORMS["ubuntu"]
     ini = "\r\n[.ShellClassInfo]\r\nIconResource=C:\\x.dll,3\r\n".encode("utf-16")

@@ -5,6 +5,7 @@ Set-up content and instances come from the templates themselves (rendered with f
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import shutil
@@ -216,6 +217,101 @@ def test_trash_needs_the_trashed_data_and_the_other_file_unchanged(tmp_path, mon
     assert not verdict.passed and "keep_me.txt: it holds other content" in verdict.reason
 
 
+@pytest.fixture
+def delete_task(tmp_path, monkeypatch):
+    """viewer_delete_image on host files: the home folder, /tmp and /var/tmp of the platform (its user roots) and
+    its trash moved under `tmp_path`."""
+    sub = instance("viewer_delete_image", tmp_path, image="/home/user/Pictures/trip/blurry_shot.png")
+    home = tmp_path / "home" / "user"
+    roots = (str(home), str(tmp_path / "tmp"), str(tmp_path / "var" / "tmp"))
+    monkeypatch.setitem(PLATFORMS, "ubuntu", replace(PLATFORMS["ubuntu"], trash=str(home / ".local/share/Trash"),
+                                                     user_roots=roots))
+    image = Path(sub.input["image"].value)
+    image.parent.mkdir(parents=True)
+    for root in roots[1:]:
+        os.makedirs(root)
+    image.write_bytes(os.urandom(2000))
+    for name in ("beach.png", "castle.png"):
+        (image.parent / name).write_bytes(os.urandom(1500))
+    return sub, image, {p: Path(p).read_bytes() for p in sub.baseline}
+
+
+def trash_it(path: Path, trash: Path) -> Path:
+    """What the viewer's Delete does (the template's oracle): the file moved to the freedesktop.org trash."""
+    (trash / "files").mkdir(parents=True, exist_ok=True), (trash / "info").mkdir(exist_ok=True)
+    (trash / "info" / f"{path.name}.trashinfo").write_text(TRASHINFO.format(path=path))
+    return Path(shutil.move(path, trash / "files" / path.name))
+
+
+def test_delete_passes_the_trash_or_rm_and_nothing_else(delete_task, tmp_path):
+    sub, image, base = delete_task
+    home, trash = tmp_path / "home" / "user", tmp_path / "home" / "user" / ".local/share/Trash"
+    assert "still there (a file of 2000 bytes)" in reasons(check(sub, base))
+    trashed = trash_it(image, trash)
+    assert passed(check(sub, base))
+    trashed.unlink()  # removed for good
+    assert passed(check(sub, base))
+    image.write_bytes(b"other bytes")  # the right name, other bytes
+    assert "still there (a file of 11 bytes)" in reasons(check(sub, base))
+    image.unlink()
+    image.symlink_to(home / "nowhere")  # a dangling link at its place
+    assert "still there (a link)" in reasons(check(sub, base))
+    image.unlink()
+    assert passed(check(sub, {p: b for p, b in base.items() if p != str(image)}))
+
+
+@pytest.mark.parametrize("where", [
+    "home/user/Documents/blurry_shot.png",        # moved out of the folder (a template negative)
+    "var/tmp/blurry_shot.png",                    # moved outside the home folder (a template negative)
+    "home/user/Pictures/trip/.blurry_shot.png",   # renamed to a hidden name in place (a template negative)
+    "home/user/.cache/x/renamed.bin",             # under another name in a hidden folder
+    "tmp/blurry_shot.png",
+])
+def test_delete_fails_the_bytes_kept_anywhere_the_user_keeps_files(delete_task, tmp_path, where):
+    sub, image, base = delete_task
+    target = tmp_path / where
+    target.parent.mkdir(parents=True, exist_ok=True)
+    shutil.move(image, target)
+    found = reasons(check(sub, base))
+    assert f"its content still at {target}" in found and "not deleted" in found, found
+    if target.name.startswith("."):
+        assert f"{target} (hidden)" in found
+
+
+def test_delete_fails_a_second_name_kept_and_a_damaged_or_wrong_neighbour(delete_task, tmp_path):
+    sub, image, base = delete_task
+    home, trash = tmp_path / "home" / "user", tmp_path / "home" / "user" / ".local/share/Trash"
+    keep = home / "Documents" / "keep.png"
+    keep.parent.mkdir()
+    trashed = trash_it(image, trash)
+    os.link(trashed, keep)  # trashed, and a second name of the trashed data kept outside the trash
+    assert f"its content still at {keep} (a second name of it: a hard link)" in reasons(check(sub, base))
+    keep.unlink()
+    beach, castle = image.parent / "beach.png", image.parent / "castle.png"
+    castle.write_bytes(b"blank")  # the damage negative: a neighbour overwritten
+    assert f"{castle}: it holds other content" in reasons(check(sub, base))
+    castle.write_bytes(base[str(castle)])
+    trash_it(beach, trash)  # the wrong picture deleted too
+    assert f"{beach}: gone" in reasons(check(sub, base))
+    shutil.move(trash / "files" / "beach.png", beach)
+    os.remove(castle)
+    os.link(beach, castle)  # a neighbour replaced by a second name of another file
+    assert f"{castle}: it is a second name of another file" in reasons(check(sub, {**base, str(castle): base[str(
+        beach)]}))
+    os.remove(castle)
+    castle.write_bytes(base[str(castle)])
+    assert passed(check(sub, base))
+
+
+def test_delete_passes_over_a_file_that_held_the_bytes_at_set_up(delete_task):
+    sub, image, base = delete_task
+    twin = image.parent / "beach.png"
+    twin.write_bytes(base[str(image)])  # set-up made a neighbour with the same bytes: not a copy the agent left
+    image.unlink()
+    assert passed(check(sub, {**base, str(twin): base[str(image)]}))
+    assert "its content still at" in reasons(check(sub, {**base, str(twin): b"other"}))
+
+
 # -- terminal ------------------------------------------------------------------------------------------------
 def test_count_must_leave_the_log_unchanged(tmp_path):
     log, answer = tmp_path / "server.log", tmp_path / "ERROR_count.txt"
@@ -251,6 +347,25 @@ def test_the_script_output_is_what_running_the_script_writes(tmp_path):
     assert Path(result).read_text().strip() == digest_text("amber-4821")
     Path(script).write_text("#!/bin/sh\necho hi\n")  # the script rewritten
     assert "changed" in reasons(check(sub, base))
+
+
+def test_a_digest_of_a_text_or_of_a_file_never_both(tmp_path):
+    """`file_text_is_digest` hashes exactly one of a text (`of`) and a file's bytes (`file`); `length` cuts the hex
+    digits (the script's `cut -c1-16`), else the whole digest is asked."""
+    from jarvis_pytest.errors import ConfigError
+
+    out, src = tmp_path / "out.txt", tmp_path / "src.csv"
+    src.write_bytes(b"a,b\n")
+    for args in ({}, {"of": "x", "file": str(src)}):
+        with pytest.raises(ConfigError, match="exactly one of"):
+            evaluate({"func": "file_text_is_digest", "args": {"path": str(out), **args}})
+    whole = hashlib.sha256(b"x").hexdigest()
+    out.write_text(whole[:16] + "\n")
+    assert evaluate({"func": "file_text_is_digest", "args": {"path": str(out), "of": "x", "length": 16}}).passed
+    assert not evaluate({"func": "file_text_is_digest", "args": {"path": str(out), "of": "x"}}).passed
+    out.write_text(hashlib.sha256(b"a,b\n").hexdigest().upper())
+    assert evaluate({"func": "file_text_is_digest", "args": {"path": str(out), "file": str(src)}},
+                    {str(src): b"a,b\n"}).passed
 
 
 @pytest.fixture

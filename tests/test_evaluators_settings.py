@@ -12,8 +12,7 @@ import pytest
 from PIL import Image
 
 from jarvis_pytest.evaluators import get_evaluator, settings
-from jarvis_pytest.evaluators.desktop import (check_deleted, check_size_report, check_vlc_option,
-                                              vlcrc_values)
+from jarvis_pytest.evaluators.desktop import check_size_report, check_vlc_option, vlcrc_values
 from jarvis_pytest.evaluators.settings import (check_font, check_theme_dark, check_typed_setting, check_unchanged,
                                                check_wallpaper_picture, check_workspaces, css_background,
                                                gtkrc_background, lightness, parse_font, theme_dirs, xfconf_xml)
@@ -260,25 +259,7 @@ def test_the_wallpaper_evaluator_reads_xfconf_and_pulls_the_shown_file():
     assert not verdict.passed and "other pixels" in verdict.reason
 
 
-# -- image viewer ------------------------------------------------------------------------------------------------------
-SHOT = "/home/user/Pictures/trip/blurry_shot.png"
-KEPT = ["/home/user/Pictures/trip/beach.png", "/home/user/Pictures/trip/castle.png"]
-
-
-def test_a_trashed_or_removed_picture_with_the_others_kept_passes():
-    assert check_deleted(SHOT, False, [], KEPT, []).passed
-
-
-@pytest.mark.parametrize("still, elsewhere, changed, found", [
-    (False, ["/home/user/Documents/blurry_shot.png"], [], "moved or copied to"),
-    (True, [], [], "still there"),
-    (False, [], [f"{KEPT[1]}: it holds other content (3 bytes)"], "castle.png: it holds other content"),
-])
-def test_a_moved_kept_or_damaging_deletion_fails(still, elsewhere, changed, found):
-    verdict = check_deleted(SHOT, still, elsewhere, KEPT, changed)
-    assert not verdict.passed and found in verdict.reason, verdict.reason
-
-
+# -- image viewer (its deletion: `folders.file_deleted`, tested in test_evaluators_files.py) -------------------------
 @pytest.mark.parametrize("text", ["731x417", "731x417\n", " 731 x 417 ", "731×417", "731X417 px"])
 def test_the_size_as_width_x_height_passes(text):
     assert check_size_report(text, 731, 417).passed
@@ -417,27 +398,6 @@ def test_theme_is_dark_looks_in_the_users_themes_first():
                        files={"/home/user/.themes/Carbon/gtk-3.0/gtk.css": css.encode()})
     verdict = settings.theme_is_dark(state)
     assert verdict.passed and "/home/user/.themes/Carbon" in verdict.reason
-
-
-def test_file_deleted_searches_for_the_content_only_when_it_knows_it():
-    import hashlib
-
-    from jarvis_pytest.evaluators.desktop import file_deleted
-
-    digest = hashlib.sha256(ORIGINAL).hexdigest()
-    moved = FakeDevice({"find": (0, f"{digest}  /home/user/Documents/blurry_shot.png\n")},
-                       files={k: b"x" for k in KEPT}, baselines={SHOT: ORIGINAL})
-    verdict = file_deleted(moved, SHOT, KEPT)
-    assert not verdict.passed and "/home/user/Documents/blurry_shot.png" in verdict.reason
-    # a composed task's input (no baseline): a file of that name elsewhere may be its source, so no search
-    fed = FakeDevice({"find": (0, "/home/user/Downloads/blurry_shot.png\n")}, files={k: b"x" for k in KEPT})
-    assert file_deleted(fed, SHOT, KEPT).passed and not any(c.startswith("find") for c in fed.commands)
-    damaged = FakeDevice({"find": (0, "")}, files={KEPT[0]: b"x", KEPT[1]: b"changed"},
-                         baselines={SHOT: ORIGINAL, KEPT[0]: b"x", KEPT[1]: b"x"})
-    verdict = file_deleted(damaged, SHOT, KEPT)
-    assert not verdict.passed and f"{KEPT[1]}: it holds other content" in verdict.reason
-    lost = FakeDevice({"find": (0, "")}, files={KEPT[1]: b"x"})
-    assert f"{KEPT[0]}: gone" in file_deleted(lost, SHOT, KEPT).reason
 
 
 def test_one_evaluator_checks_the_asked_change_and_what_must_stay():

@@ -96,9 +96,15 @@ class WinHost:
         return {rel: self.entry(root / rel) for rel in PROBE_NS["tree"](str(root), depth)}
 
     def probe(self, state, *, entries=None, trees=None, depth=None, processes=False, windows=False, trash=None,
-              heads=None, platform=None):
+              heads=None, search=None, sizes=None, platform=None):
         out = {"entries": {p: self.entry(self.host(p)) for p in entries or []},
                "trees": {r: self.tree(self.host(r), depth) if self.host(r).is_dir() else None for r in trees or []}}
+        if search:  # the probe's own search on the host folders, its finds named by their device paths
+            out["found"] = {}
+            for root in search:
+                for found in PROBE_NS["search"]([str(self.host(root))], sizes or []):
+                    rel = os.path.relpath(found, self.host(root)).replace(os.sep, "\\")
+                    out["found"][root.rstrip("\\") + "\\" + rel] = self.entry(Path(found))
         if processes:
             out["processes"] = self.processes
         if windows:
@@ -282,6 +288,19 @@ def test_the_probe_script_runs_and_writes_its_answer(tmp_path):
     out = json.loads((tmp_path / "out.json").read_text())
     assert out["entries"][str(tmp_path / "a" / "x.txt")]["size"] == 1
     assert list(out["trees"][str(tmp_path / "a")]) == ["x.txt"] and out["trees"][str(tmp_path / "none")] is None
+    (tmp_path / "a" / "sub").mkdir()
+    (tmp_path / "a" / "sub" / ".y.txt").write_text("y")  # a hidden name, a folder down: found
+    (tmp_path / "a" / "z.txt").write_text("zz")  # another size: not hashed, not reported
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "elsewhere" / "w.txt").write_text("w")
+    (tmp_path / "a" / "linked").symlink_to(tmp_path / "elsewhere")  # a link below the root: not entered
+    (tmp_path / "req.json").write_text(json.dumps({"search": [str(tmp_path / "a"), str(tmp_path / "none")],
+                                                   "sizes": [1]}))
+    subprocess.run([sys.executable, "-I", str(tmp_path / "probe.py"), str(tmp_path / "req.json"),
+                    str(tmp_path / "out.json")], check=True)
+    found = json.loads((tmp_path / "out.json").read_text())["found"]
+    assert sorted(found) == [str(tmp_path / "a" / "sub" / ".y.txt"), str(tmp_path / "a" / "x.txt")]
+    assert found[str(tmp_path / "a" / "x.txt")]["sha256"] == hashlib.sha256(b"x").hexdigest()
     (tmp_path / "req.json").write_text(json.dumps({"processes": True}))  # no Windows API here: reported, not raised
     subprocess.run([sys.executable, "-I", str(tmp_path / "probe.py"), str(tmp_path / "req.json"),
                     str(tmp_path / "out.json")], check=True)
@@ -429,6 +448,106 @@ def test_sort_by_type(dev):
     (folder / "by_type" / "beta.csv").write_bytes(b"beta of .csv\r\n")
     (folder / "by_type" / "stray.txt").write_bytes(b"x")
     assert "also holds ['stray.txt']" in reasons(check(dev, sub, base))
+
+
+# -- Edge's download and PowerShell's hash (kvm-only templates, judged by the neutral evaluators) -----------------
+def test_edge_download_is_a_copy_of_the_served_file(dev):
+    """edge_download_file: `file_copied` of the file served from the drive, as Chromium's download on Ubuntu."""
+    sub = instance("edge_download_file", file_name="contacts.csv", seed=5)
+    served = generate("people_table", {"seed": 5, "rows": 6, "format": "csv"})
+    dev.upload(r"S:\data\contacts.csv", served)
+    base = capture(dev, sub)
+    out = dev.host(sub.output["download"].value)
+    assert "no copy" in reasons(check(dev, sub, base))
+    dev.upload(sub.output["download"].value, served)
+    assert passed(check(dev, sub, base)) and passed(check(dev, sub, {}))
+    for data in (b"<!doctype html><html>Shared files</html>", b"not,this,one\r\n", served[:60]):  # its negatives
+        out.write_bytes(data)
+        assert "copy holds other content" in reasons(check(dev, sub, base))
+    out.write_bytes(served)
+    dev.attrs[out] = HIDDEN  # downloaded, then hidden (a negative)
+    assert "copy is hidden" in reasons(check(dev, sub, base))
+    dev.attrs.pop(out)
+    junk = b"name,value\r\n"  # the same junk over the served file and into Downloads (a negative)
+    dev.upload(r"S:\data\contacts.csv", junk)
+    out.write_bytes(junk)
+    assert "the original changed" in reasons(check(dev, sub, base))
+
+
+def test_powershell_hash_is_of_the_file_as_set_up_and_the_file_kept(dev):
+    """powershell_file_hash: `file_text_is_digest` with `file`, the answer in any encoding PowerShell writes."""
+    sub = instance("powershell_file_hash", file=r"C:\Users\user\Documents\orders.csv", seed=17)
+    base = set_up(dev, sub)
+    src, out = dev.host(sub.input["file"].value), sub.output["out"].value
+    data = src.read_bytes()
+    digest = hashlib.sha256(data).hexdigest()
+    assert "no file" in reasons(check(dev, sub, base))
+    dev.upload(out, b"\xff\xfe" + (digest.upper() + "\r\n").encode("utf-16-le"))  # Get-FileHash's Hash | Out-File
+    assert passed(check(dev, sub, base))
+    dev.upload(out, digest.encode())
+    assert passed(check(dev, sub, base))  # lower case, ANSI: the same hash
+    assert passed(check(dev, sub, {}))  # fed by an upstream subtask: hashed as it is
+    for text, needle in [("orders.csv", "'orders.csv'"), (hashlib.md5(data).hexdigest().upper(), "just the sha256"),
+                         (digest[:32], digest[:32]), (digest + " orders.csv", "orders.csv")]:
+        dev.upload(out, text.encode())
+        assert needle in reasons(check(dev, sub, base)), text
+    dev.upload(out, digest.encode("utf-16-le"))  # UTF-16 without its mark: no text a Windows program writes
+    assert "not a text file" in reasons(check(dev, sub, base))
+    dev.upload(out, digest.encode())
+    dev.attrs[src] = HIDDEN  # the hash written, the file hidden (a negative)
+    assert "orders.csv: it is hidden" in reasons(check(dev, sub, base))
+    dev.attrs.pop(src)
+    src.write_bytes(data + b"extra\r\n")  # the hash of the file as given, then the file edited (a negative)
+    assert "orders.csv: it holds other content" in reasons(check(dev, sub, base))
+    dev.upload(out, hashlib.sha256(data + b"extra\r\n").hexdigest().encode())  # the hash of the edited file
+    assert not passed(check(dev, sub, base))
+
+
+def test_text_answers_in_every_encoding_a_windows_program_writes(dev):
+    """`file_text_equals` reads the answer with the platform's decoder (what `text_file_holds` did on Windows)."""
+    path = "C:\\Users\\user\\Desktop\\n.txt"
+    for data in ("7\r\n".encode("utf-16-le"), b"\xff\xfe" + "7\r\n".encode("utf-16-le"), b"7\r\n",
+                 b"\xef\xbb\xbf7\n", b"  7  ", "\u00e9".encode("cp1252")):
+        dev.upload(path, data)
+        state = FinalState(platform="windows", devices={"windows": dev})
+        verdict = get_evaluator("file_text_equals")(state, path=path, expected="\u00e9" if b"\xe9" in data else "7")
+        if data.startswith("7".encode("utf-16-le")):  # UTF-16 without a mark is no text a Windows program writes
+            assert not verdict.passed and "not a text file" in verdict.reason
+        else:
+            assert verdict.passed, (data, verdict.reason)
+
+
+def test_a_deleted_file_leaves_no_copy_hidden_or_not_outside_the_recycle_bin(dev):
+    """The neutral `file_deleted` on Windows: the probe's search of the user's places (`PlatformSpec.user_roots`:
+    C:\\Users, C:\\temp, the drive S:\\) for its bytes; the Recycle Bin's data is the trash."""
+    path = "C:\\Users\\user\\Desktop\\plan.txt"
+    kept = "C:\\Users\\user\\Desktop\\keep.txt"
+    dev.upload(path, b"the plan\r\n")
+    dev.upload(kept, b"keep me\r\n")
+    base = {path: b"the plan\r\n", kept: b"keep me\r\n"}
+    state = FinalState(platform="windows", devices={"windows": dev},
+                       baselines={("windows", p): b for p, b in base.items()})
+
+    def deleted():
+        state._files.clear()
+        return get_evaluator("file_deleted")(state, path=path, kept=[kept])
+
+    assert "still there (a file of 10 bytes)" in deleted().reason
+    dev.attrs[dev.host(path)] = HIDDEN  # "deleted": hidden in place
+    assert "still there (a file of 10 bytes (hidden))" in deleted().reason
+    bin_data = dev.host("C:\\$Recycle.Bin\\S-1-5-21-1000\\$RAB12CD.txt")
+    bin_data.parent.mkdir(parents=True)
+    os.rename(dev.host(path), bin_data)  # Explorer's delete: the data in the drive's Recycle Bin
+    assert deleted().passed
+    for where, attrs in (("C:\\Users\\user\\AppData\\Local\\x.tmp", HIDDEN | SYSTEM), ("S:\\data\\plan.txt", 0),
+                         ("C:\\temp\\plan.txt", 0), ("C:\\Users\\Public\\Documents\\plan.txt", 0)):
+        dev.upload(where, b"the plan\r\n")
+        dev.attrs[dev.host(where)] = attrs
+        found = deleted().reason
+        assert f"its content still at {where}" in found and "not deleted" in found, found
+        os.remove(dev.host(where))
+    dev.upload(kept, b"")
+    assert f"{kept}: it holds other content" in deleted().reason
 
 
 # -- hidden and system entries count ----------------------------------------------------------------------------

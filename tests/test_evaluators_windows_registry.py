@@ -3,12 +3,12 @@ output and `.reg` files as Windows and Wine write them, parsed; a fake Windows d
 answers `reg query` (the way a real Windows does, or with no output as under Wine, where the evaluator falls back to
 `reg export`) and whose files live in a dict. For each template of this module the result a careful person leaves
 passes, and each near-miss state of its `negatives` fails with a reason naming what is wrong; the templates that
-run only on a real Windows (Paint, Edge, PowerShell) are checked the same way on files made here as their oracles
-and negatives would leave them."""
+run only on a real Windows (Paint, Edge) are checked the same way on files made here as their oracles and negatives
+would leave them (Edge's download and PowerShell's hash are judged by the neutral evaluators:
+test_evaluators_windows_files.py)."""
 
 from __future__ import annotations
 
-import hashlib
 import io
 import json
 import re
@@ -24,8 +24,7 @@ from jarvis_pytest.evaluators import get_evaluator
 from jarvis_pytest.evaluators.browser import bookmarks_checksum
 from jarvis_pytest.evaluators.state import FinalState
 from jarvis_pytest.evaluators import windows_registry as wr
-from jarvis_pytest.evaluators.windows_registry import (Branch, RegKey, RegValue, branch_changes, check_edge_favorite,
-                                                       check_reg_export, check_text_value, decode_windows_text,
+from jarvis_pytest.evaluators.windows_registry import (Branch, RegKey, RegValue, branch_changes, check_reg_export,
                                                        norm_key, parse_reg_file, parse_reg_query, typed_value)
 from jarvis_pytest.generators import generate
 from jarvis_pytest.tasks.instances import materialise
@@ -580,96 +579,7 @@ def test_minesweeper_must_have_exited_before_its_settings_count(monkeypatch):
     assert passed(run_evaluators(sub, dev, base)) and len(calls) == 2
 
 
-# -- text files (PowerShell) ----------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("data", [
-    "7\r\n".encode("utf-16-le"), b"\xff\xfe" + "7\r\n".encode("utf-16-le"), b"7\r\n", b"\xef\xbb\xbf7\n", b"  7  ",
-])
-def test_text_value_in_every_encoding_powershell_writes(data):
-    if data.startswith("7".encode("utf-16-le")):  # UTF-16 without a mark is no text a Windows program writes
-        assert not check_text_value(data, "7").passed
-        return
-    assert check_text_value(data, "7").passed
-
-
-def test_decode_windows_text():
-    assert decode_windows_text(b"\xfe\xff\x00A") == ("A", "UTF-16 BE")
-    assert decode_windows_text("é".encode("cp1252")) == ("é", "ANSI")
-
-
-def test_file_hash():
-    sub = instance("powershell_file_hash", file=r"C:\Users\user\Documents\orders.csv", seed=17)
-    dev = FakeWindows()
-    src = sub.input["file"].value
-    data = generate("people_table", {"seed": 17, "rows": 8, "format": "csv"})
-    dev.put(src, data)
-    base = {src: data}
-    out = sub.output["out"].value
-    digest = hashlib.sha256(data).hexdigest()
-    dev.put(out, b"\xff\xfe" + (digest.upper() + "\r\n").encode("utf-16-le"))  # Get-FileHash's Hash | Out-File
-    assert passed(run_evaluators(sub, dev, base))
-    dev.put(out, digest.encode())
-    assert passed(run_evaluators(sub, dev, base))  # lower case, ANSI: the same hash
-    assert passed(run_evaluators(sub, dev, {}))  # fed by an upstream task: hashed as it is
-    for text, needle in [("orders.csv", "'orders.csv'"), (hashlib.md5(data).hexdigest().upper(), "holding just"),
-                         (digest[:32], digest[:32])]:
-        dev.put(out, text.encode())
-        assert needle in reasons(run_evaluators(sub, dev, base))
-    dev.put(out, digest.encode())
-    dev.put(src, data + b"extra\r\n")
-    assert "changed since set-up" in reasons(run_evaluators(sub, dev, base))
-
-
-# -- Edge -------------------------------------------------------------------------------------------------------------------
-def edge_bookmarks(marks: list[tuple[str, str]], extra_root: bool = False, checksum: str | None = None) -> bytes:
-    folder = lambda name, kids, i: {"children": kids, "id": str(i), "name": name, "type": "folder"}  # noqa: E731
-    kids = [{"id": str(10 + i), "name": n, "type": "url", "url": u} for i, (n, u) in enumerate(marks)]
-    data = {"roots": {"bookmark_bar": folder("Favorites bar", kids, 1), "other": folder("Other favorites", [], 2),
-                      "synced": folder("Mobile favorites", [], 3)}, "version": 1}
-    if extra_root:
-        data["roots"]["workspaces"] = folder("Workspaces", [{"id": "50", "name": "w", "type": "url",
-                                                              "url": "https://example.com/"}], 4)
-    if checksum is None:
-        from jarvis_pytest.evaluators.windows_registry import edge_checksums
-
-        checksum = sorted(edge_checksums(data))[-1] if extra_root else bookmarks_checksum(data)
-    data["checksum"] = checksum
-    return json.dumps(data, indent=3).encode()
-
-
-def test_edge_favourite():
-    url = "file:///C:/Users/user/Documents/recipes.html"
-    assert check_edge_favorite(edge_bookmarks([("Read later", url)]).decode(), url, "Read later").passed
-    assert check_edge_favorite(edge_bookmarks([("Read later", url)], extra_root=True).decode(), url,
-                               "Read later").passed  # Edge's own roots (workspaces) counted in its checksum
-    assert "edited by hand" in check_edge_favorite(edge_bookmarks([("Read later", url)], checksum="0" * 32).decode(),
-                                                   url, "Read later").reason
-    assert not check_edge_favorite(edge_bookmarks([("Weekly Recipes", url)]).decode(), url, "Read later").passed
-    assert "no Bookmarks file" in check_edge_favorite(None, url).reason
-    sub = instance("edge_add_favorite", page="recipes", title="Weekly Recipes", mark="Read later")
-    dev = FakeWindows()
-    dev.put(r"C:\Users\user\AppData\Local\Microsoft\Edge\User Data\Default\Bookmarks",
-            b"\xef\xbb\xbf" + edge_bookmarks([("Read later", url)]))
-    assert passed(run_evaluators(sub, dev, {}))
-
-
-def test_edge_download_needs_the_served_bytes():
-    sub = instance("edge_download_file", file_name="contacts.csv", seed=5)
-    dev = FakeWindows()
-    served = generate("people_table", {"seed": 5, "rows": 6, "format": "csv"})
-    dev.put(r"S:\data\contacts.csv", served)
-    base = {r"S:\data\contacts.csv": served}
-    out = sub.output["download"].value
-    assert "no file at" in reasons(run_evaluators(sub, dev, base))
-    dev.put(out, served)
-    assert passed(run_evaluators(sub, dev, base))
-    for data in (b"<!doctype html><html>Shared files</html>", b"not,this,one\r\n", served[:60]):
-        dev.put(out, data)
-        assert "different bytes" in reasons(run_evaluators(sub, dev, base))
-    dev.put(out, b"")
-    dev.put(r"S:\data\contacts.csv", b"")  # the served file emptied too: the set-up copy still counts
-    assert "different bytes" in reasons(run_evaluators(sub, dev, base))
-
-
+# -- Edge (its favourites: test_evaluators_browser.py) --------------------------------------------------------------
 def test_edge_save_pdf_reads_the_pdf():
     sub = instance("edge_save_pdf", title="Boarding Pass", code="REF-12345", folder=r"C:\Users\user\Desktop",
                    name="printout")

@@ -38,6 +38,10 @@ class PlatformSpec:
     hidden_by: Literal["dot_name", "attributes"] = "dot_name"  # what hides an entry from a folder's listing
     trash: str | None = None         # where a deleted file waits to be restored: a freedesktop.org trash folder
     #                                  (info/ and files/); Windows: the Recycle Bin folder of each drive
+    trash_prefix: str | None = None  # a trash that keeps a deleted file in its own folder under a marked name:
+    #                                  Android's MediaStore renames it <prefix><expiry>-<name> (`.trashed-`)
+    user_roots: tuple[str, ...] = ()  # every place the user, or an agent in the device's shell, may keep files:
+    #                                  where a file said to be deleted must not turn up under another name
     shell_files: tuple[str, ...] = ()  # names the desktop's own file manager writes into folders (Explorer's
     #                                  desktop.ini, Thumbs.db): folder checks pass over one only if it is such a file
     drive_root: str | None = None    # where the transfer drive shows as a drive letter (Windows: S:\); None: it
@@ -107,14 +111,15 @@ PLATFORMS: dict[str, PlatformSpec] = {
     "android": PlatformSpec(
         name="android", label="Android", device_name="Android phone", screen=(1080, 2400), path_style="posix",
         case_insensitive_paths=False, home="/sdcard", writable_roots=("/sdcard", "/data/local/tmp"),
-        transfer_folder="/sdcard/Download/transfer", shell="sh"),
+        transfer_folder="/sdcard/Download/transfer", shell="sh",
+        trash_prefix=".trashed-", user_roots=("/sdcard", "/data/local/tmp")),
     "windows": PlatformSpec(
         name="windows", label="Windows", device_name="Windows PC", screen=(1920, 1080), path_style="windows",
         case_insensitive_paths=True, home="C:\\Users\\user", writable_roots=("C:\\Users\\user", "C:\\temp", "S:\\"),
         transfer_folder="C:\\Users\\user\\Downloads\\transfer", drive_root="S:\\", shell="cmd",
         text_codepage="cp1252",
         file_facts="windows_probe", hidden_by="attributes", trash="$Recycle.Bin",
-        shell_files=("desktop.ini", "thumbs.db"),
+        shell_files=("desktop.ini", "thumbs.db"), user_roots=("C:\\Users", "C:\\temp", "S:\\"),
         # the device's Python writes the date to a file that cmd's own `type` prints: under Wine the output of a
         # program the control server's cmd starts never reaches the server, that of cmd's built-ins does
         today_command=('"C:\\jarvis\\python\\pythonw.exe" -I -c "import datetime,os; open(os.path.join(os.environ['
@@ -124,7 +129,7 @@ PLATFORMS: dict[str, PlatformSpec] = {
         name="ubuntu", label="Ubuntu", device_name="Ubuntu desktop", screen=(1920, 1080), path_style="posix",
         case_insensitive_paths=False, home="/home/user", writable_roots=("/home/user", "/tmp"),
         transfer_folder="/tmp/transfer", shell="bash", desktop_user="user",
-        trash="/home/user/.local/share/Trash"),
+        trash="/home/user/.local/share/Trash", user_roots=("/home/user", "/tmp", "/var/tmp", "/dev/shm")),
 }
 PLATFORM_NAMES: tuple[str, ...] = tuple(PLATFORMS)
 

@@ -24,7 +24,6 @@ unchanged against what the set-up made. Every reason names what was expected and
 
 from __future__ import annotations
 
-import hashlib
 import io
 import quopri
 import re
@@ -37,7 +36,6 @@ from typing import Any
 from jarvis_pytest.devices.android.outputs import parse_content_rows, settings_value
 from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.evaluators.browser import check_bookmark
-from jarvis_pytest.evaluators.folders import changed_since_setup
 from jarvis_pytest.evaluators.registry import Verdict, evaluator
 from jarvis_pytest.evaluators.state import FinalState, judge_file
 
@@ -610,35 +608,7 @@ def android_calendar_events(state: FinalState, calendar: str, events: list[dict]
     return check_events(rows, expected)
 
 
-# -- files -----------------------------------------------------------------------------------------------------
-TRASHED = ".trashed-"  # MediaStore's trash keeps a file in its folder as .trashed-<expiry>-<name> (Android 11+)
-
-
-@evaluator("android_file_deleted")
-def android_file_deleted(state: FinalState, path: str, kept: list[str] | None = None, root: str = "/sdcard",
-                         platform: str | None = None) -> Verdict:
-    """The file at `path` is deleted (or in MediaStore's trash), not moved or copied elsewhere: no file under
-    `root` outside the trash holds the bytes it had at set-up (list `path` under `baseline`; without one only its
-    absence is checked), and every file of `kept` is still there unchanged (`changed_since_setup`)."""
-    want = f"{path} deleted" + (f" and the {len(kept)} other file(s) kept unchanged" if kept else "")
-    problems = []
-    if state.exists(path, platform):
-        problems.append(f"{path} still there")
-    original = state.baseline(path, platform)
-    if original is not None and not problems:
-        digest = hashlib.sha256(original).hexdigest()
-        res = state.run(f"find {q(root)} -type f -size {len(original)}c 2>/dev/null | while IFS= read -r f; do "
-                        "sha256sum \"$f\"; done", platform)
-        for line in res.stdout.splitlines():
-            h, _, name = line.partition(" ")
-            name = name.strip().lstrip("*")
-            if h == digest and name != path and not name.rsplit("/", 1)[-1].startswith(TRASHED):
-                problems.append(f"its content still at {name} (moved or copied, not deleted)")
-                break
-    problems += changed_since_setup(state, kept, platform)
-    return Verdict.check(not problems, want, "; ".join(problems) or "deleted, the others kept")
-
-
+# -- files (a deletion is `folders.file_deleted`) -----------------------------------------------------------
 def check_photo(data: bytes | None, path: str, decoys: dict[str, bytes], min_side: int = 240) -> Verdict:
     """`data` is a photo: a real JPEG (decoded) at least `min_side` pixels on its short side, and not one of the
     pictures that were on the device before (`decoys`: path → bytes)."""

@@ -1,6 +1,7 @@
 """File checks of desktop tasks that compare the agent's result with what the task set up (image viewer, browser,
-media player; a copy or a download is `folders.file_copied`): originals come from the template's `baseline` (the file right after set-up, captured on the host,
-so an agent that overwrites the original cannot move the goalposts), never from the agent's own output alone.
+media player; a copy or a download is `folders.file_copied`, a deletion `folders.file_deleted`): originals come
+from the template's `baseline` (the file right after set-up, captured on the host, so an agent that overwrites the
+original cannot move the goalposts), never from the agent's own output alone.
 
 Each check says in its docstring what it falls back to when there is no baseline (a file an earlier subtask of a
 composed task made): then it compares with the file as the device holds it now.
@@ -8,60 +9,16 @@ composed task made): then it compares with the file as the device holds it now.
 
 from __future__ import annotations
 
-import hashlib
 import re
 import shlex
 from html.parser import HTMLParser
 
-from jarvis_pytest.evaluators.folders import changed_since_setup
 from jarvis_pytest.evaluators.registry import Verdict, evaluator
 from jarvis_pytest.evaluators.state import FinalState, as_text
-
-TRASH = "/home/user/.local/share/Trash"
-SEARCH_ROOTS = ("/home/user", "/tmp")
 
 
 def _short(text: str, limit: int = 120) -> str:
     return repr(text if len(text) <= limit else text[:limit] + "…")
-
-
-# -- deletion --------------------------------------------------------------------------------------------------
-def check_deleted(path: str, still_there: bool, elsewhere: list[str], kept: list[str],
-                  changed: list[str]) -> Verdict:
-    """The file at `path` is deleted: not there, and its content nowhere else outside the trash (`elsewhere`: the
-    paths holding it); nothing changed among the files of `kept` (`changed`: what did, as `changed_since_setup`
-    says it)."""
-    want = f"{path} deleted (gone, or in the trash)" + (f" and the {len(kept)} other file(s) kept unchanged"
-                                                         if kept else "")
-    problems = []
-    if still_there:
-        problems.append(f"{path} still there")
-    if elsewhere:
-        problems.append(f"its content moved or copied to {', '.join(elsewhere[:3])}, not deleted")
-    problems += changed
-    return Verdict.check(not problems, want, "; ".join(problems) if problems else "deleted, the others kept")
-
-
-@evaluator("file_deleted")
-def file_deleted(state: FinalState, path: str, kept: list[str] | None = None, platform: str | None = None) -> Verdict:
-    """The file at `path` is deleted — removed, or moved to the desktop user's trash as a file manager or image
-    viewer does — and not merely moved or copied elsewhere: no file under /home/user or /tmp outside the trash has
-    its content as set up (list `path` under `baseline`). Without a baseline (an input an earlier subtask of a
-    composed task made) that search is skipped — a file of the same name or content may rightly exist elsewhere
-    there (the earlier subtask's source) — and only its absence is checked. Every file of `kept` is still there
-    unchanged (`changed_since_setup`)."""
-    still_there = state.exists(path, platform)
-    roots = " ".join(SEARCH_ROOTS)
-    prune = f"-path {shlex.quote(TRASH)} -prune -o"
-    original = state.baseline(path, platform)
-    elsewhere: list[str] = []
-    if original is not None:
-        digest = hashlib.sha256(original).hexdigest()
-        res = state.run(f"find {roots} -xdev {prune} -type f -size {len(original)}c -print0 2>/dev/null | "
-                        "xargs -0 -r sha256sum", platform)
-        elsewhere = [line.split(None, 1)[1] for line in res.stdout.splitlines()
-                     if line.split(None, 1)[0] == digest and line.split(None, 1)[1] != path]
-    return check_deleted(path, still_there, elsewhere, list(kept or []), changed_since_setup(state, kept, platform))
 
 
 # -- answers written into text files ----------------------------------------------------------------------------

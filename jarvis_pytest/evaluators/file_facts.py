@@ -1,6 +1,8 @@
 """File facts, the same on every platform: whether a path exists and what it is (file, folder, link), whether the
-platform hides it, its size and SHA-256, how many names the file has (hard links), a folder's whole content, and
-what the desktop's trash holds. Evaluators judge these facts; how they are read is this module's business.
+platform hides it, its size and SHA-256, how many names the file has (hard links), a folder's whole content,
+what the desktop's trash holds, and the files of given sizes anywhere under given folders (a search for copies of
+known bytes: only files of a size asked are hashed). Evaluators judge these facts; how they are read is this
+module's business.
 
 One implementation per platform, chosen by `PlatformSpec.file_facts`: a POSIX shell command run with `state.run`
 (Ubuntu; Android's toybox has the same `stat`, `find`, `sha256sum`, `sed` and `head`), or the Windows probe
@@ -54,20 +56,33 @@ NOTHING = Entry(exists=False)
 class Facts:
     """What one reading found: `entries` by the path asked; `trees[folder]` its content at every depth by path
     inside it (platform separators; None: no folder there); `trash` (original path, the trashed data) per entry of
-    the trash, when asked."""
+    the trash, when asked; `found` the files a search found, by full path, when asked."""
 
     entries: dict[str, Entry]
     trees: dict[str, dict[str, Entry] | None]
     trash: list[tuple[str, Entry]] | None = None
+    found: dict[str, Entry] | None = None
+
+
+@dataclass(frozen=True)
+class Search:
+    """Where to look for files and which sizes they must have."""
+
+    roots: tuple[str, ...]
+    sizes: tuple[int, ...]
 
 
 def read_facts(state: FinalState, *, entries: list[str] | tuple[str, ...] = (),
                trees: list[str] | tuple[str, ...] = (), depth: int | None = None, trash: bool = False,
+               search: list[str] | tuple[str, ...] = (), sizes: list[int] | tuple[int, ...] = (),
                platform: str | None = None) -> Facts:
-    """The facts of `entries` (paths), the content of `trees` (folders; `depth` levels deep, None: all) and, with
-    `trash`, the trash's entries, read on the device in one go."""
+    """The facts of `entries` (paths), the content of `trees` (folders; `depth` levels deep, None: all), with
+    `trash` the trash's entries, and with `search` (folders) and `sizes` every regular file under those folders,
+    at any depth, hidden or not, whose size is one of `sizes` (`Facts.found`; links below a folder are not
+    followed, a folder that is no folder is skipped), read on the device in one go."""
     plat = spec(platform or state.platform)
-    return READERS[plat.file_facts](state, list(entries), list(trees), depth, trash, plat)
+    wanted = Search(tuple(search), tuple(sorted({int(n) for n in sizes}))) if search and sizes else None
+    return READERS[plat.file_facts](state, list(entries), list(trees), depth, trash, plat, wanted)
 
 
 # -- shared conventions ----------------------------------------------------------------------------------------
@@ -132,9 +147,11 @@ _POSIX_FUNCTION = r"""f() {
 _KINDS = {"regular file": "file", "regular empty file": "file", "directory": "dir", "symbolic link": "link"}
 
 
-def posix_script(entries: list[str], trees: list[str], depth: int | None, trash: str | None) -> str:
-    """The shell command that prints the facts of `entries`, the content of `trees` (`depth` levels deep) and the
-    trash at `trash`."""
+def posix_script(entries: list[str], trees: list[str], depth: int | None, trash: str | None,
+                 search: Search | None = None) -> str:
+    """The shell command that prints the facts of `entries`, the content of `trees` (`depth` levels deep), the
+    trash at `trash` and the files `search` asks for (`find -H`: a folder given as a link, such as Android's
+    /sdcard, is searched; links below it are not followed)."""
     q = shlex.quote
     limit = "" if depth is None else f" -maxdepth {int(depth)}"
     lines = [_POSIX_FUNCTION]
@@ -148,6 +165,12 @@ def posix_script(entries: list[str], trees: list[str], depth: int | None, trash:
         lines.append(f'for i in {t}/info/*.trashinfo; do [ -f "$i" ] || continue; n=${{i##*/}}; '
                      f'printf "I %s\\n" "$(sed -n "s/^Path=//p" "$i" | head -n 1)"; f {t}/files/"${{n%.trashinfo}}" D; '
                      'done')
+    if search:
+        sizes = " -o ".join(f"-size {n}c" for n in search.sizes)
+        for root in search.roots:
+            r = q(root.rstrip("/") or "/")
+            lines.append(f"if [ -d {r} ]; then find -H {r} -xdev -type f \\( {sizes} \\) 2>/dev/null | "
+                         'while IFS= read -r p; do f "$p" S; done; fi')
     lines.append("true")
     return "\n".join(lines)
 
@@ -162,12 +185,13 @@ def _posix_entry(fields: list[str], hidden: bool) -> Entry:
 
 
 def _read_posix(state: FinalState, entries: list[str], trees: list[str], depth: int | None, trash: bool,
-                plat: PlatformSpec) -> Facts:
-    res = state.run(posix_script(entries, trees, depth, plat.trash if trash else None), plat.name)
+                plat: PlatformSpec, search: Search | None = None) -> Facts:
+    res = state.run(posix_script(entries, trees, depth, plat.trash if trash else None, search), plat.name)
     if res.returncode != 0:
         raise InfrastructureError(f"reading file facts failed on the {plat.name} device (exit {res.returncode}): "
                                   f"{(res.stdout + res.stderr)[-500:]}")
-    facts = Facts(entries={}, trees={root: None for root in trees}, trash=[] if trash else None)
+    facts = Facts(entries={}, trees={root: None for root in trees}, trash=[] if trash else None,
+                  found={} if search else None)
     info: str | None = None
     for line in res.stdout.splitlines():
         tag, _, rest = line.partition(" ")
@@ -191,6 +215,10 @@ def _read_posix(state: FinalState, entries: list[str], trees: list[str], depth: 
             tree = facts.trees[trees[int(tag[1:])]]
             if tree is not None:
                 tree[rel] = entry if entry.exists else Entry(exists=True, kind="other")
+        elif tag == "S" and facts.found is not None:
+            entry = _posix_entry(fields, hides_name(plat, path))
+            if entry.kind == "file":
+                facts.found[path] = _hashed(state, path, entry, plat)
         elif tag == "D" and facts.trash is not None and info:
             facts.trash.append((info, _hashed(state, path, _posix_entry(fields, False), plat)))
             info = None
@@ -210,11 +238,12 @@ def _hashed(state: FinalState, path: str, entry: Entry, plat: PlatformSpec) -> E
 
 
 def _read_windows(state: FinalState, entries: list[str], trees: list[str], depth: int | None, trash: bool,
-                  plat: PlatformSpec) -> Facts:
+                  plat: PlatformSpec, search: Search | None = None) -> Facts:
     from jarvis_pytest.evaluators.windows_probe import read_facts as windows_facts
 
-    return windows_facts(state, entries, trees, depth, trash, plat)
+    return windows_facts(state, entries, trees, depth, trash, plat, search)
 
 
-READERS: dict[str, Callable[[FinalState, list[str], list[str], int | None, bool, PlatformSpec], Facts]] = {
+READERS: dict[str, Callable[[FinalState, list[str], list[str], int | None, bool, PlatformSpec, Search | None],
+                            Facts]] = {
     "posix_shell": _read_posix, "windows_probe": _read_windows}

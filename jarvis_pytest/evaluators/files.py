@@ -16,9 +16,11 @@ import posixpath
 import shlex
 import zipfile
 
-from jarvis_pytest.evaluators.folders import changed_since_setup
+from jarvis_pytest.errors import ConfigError
+from jarvis_pytest.evaluators.folders import changed_since_setup, with_unchanged
 from jarvis_pytest.evaluators.registry import Verdict, evaluator
 from jarvis_pytest.evaluators.state import FinalState, as_text, judge_file
+from jarvis_pytest.evaluators.text import read_answer
 
 
 def _short(text: str, limit: int = 120) -> str:
@@ -54,25 +56,17 @@ def file_exists(state: FinalState, path: str, platform: str | None = None) -> Ve
     return Verdict.check(ok, f"a file at {path}", "it" if ok else "no file")
 
 
-@evaluator("file_absent")
-def file_absent(state: FinalState, path: str, kept: list[str] | None = None, platform: str | None = None) -> Verdict:
-    """No file at `path` (deleted, moved or trashed), while every file of `kept` is still there — with the bytes it
-    had at set-up when the template lists it under `baseline` (its existence only otherwise)."""
-    gone = not state.exists(path, platform)
-    lost = changed_since_setup(state, kept, platform)
-    want = f"no file at {path}" + (f" and the {len(kept)} other file(s) kept unchanged" if kept else "")
-    found = ("none" if gone else "a file") + (f"; {'; '.join(lost)}" if lost else "")
-    return Verdict.check(gone and not lost, want, found)
-
-
 @evaluator("file_text_equals")
 def file_text_equals(state: FinalState, path: str, expected: str, strip: bool = True,
                      unchanged: list[str] | None = None, platform: str | None = None) -> Verdict:
-    """`path` reads `expected` (surrounding white space ignored when `strip`), and the files of `unchanged` (e.g.
-    the input the answer was read from) are as they were at set-up (see `changed_since_setup`)."""
-    text, expected = state.pull_text(path, platform), str(expected)  # a lone "{{slot}}" may render as a number
+    """`path` reads `expected` (surrounding white space ignored when `strip`) in any encoding the platform's programs
+    write (`text.decode_text` with its code page: UTF-16 with a byte order mark from Windows PowerShell's `>`, UTF-8,
+    ANSI), and the files of `unchanged` (e.g. the input the answer was read from) are as they were at set-up (see
+    `changed_since_setup`)."""
+    expected = str(expected)  # a lone "{{slot}}" may render as a number
+    text, why = read_answer(state, path, platform)
     if text is None:
-        return Verdict.check(False, f"{path} with text {_short(expected)}", "no file")
+        return Verdict.check(False, f"{path} with text {_short(expected)}", why)
     got, want = (text.strip(), expected.strip()) if strip else (text, expected)
     if got != want:
         return Verdict.check(False, f"{path} to read {_short(want)}", _short(got))
@@ -81,25 +75,51 @@ def file_text_equals(state: FinalState, path: str, expected: str, strip: bool = 
         f" and {', '.join(unchanged)} unchanged" if unchanged else ""), "; ".join(damaged) or _short(got))
 
 
-def digest_text(text: str, algorithm: str = "sha256", length: int = 16) -> str:
-    """The first `length` hex digits of the `algorithm` digest of `text` (UTF-8): what
+def digest_text(text: str, algorithm: str = "sha256", length: int | None = 16) -> str:
+    """The first `length` hex digits (None: all) of the `algorithm` digest of `text` (UTF-8): with 16, what
     `printf '%s' TEXT | sha256sum | cut -c1-16` prints."""
     return hashlib.new(algorithm, str(text).encode("utf-8")).hexdigest()[:length]
 
 
+def check_digest(text: str, digest: str, what: str) -> Verdict:
+    """`text` is the hex `digest` alone (white space around it aside; upper or lower case, as `sha256sum` and
+    PowerShell's `Get-FileHash` write it)."""
+    got = text.strip().lstrip("\ufeff").strip()
+    return Verdict.check(got.casefold() == digest.casefold(), f"just the {what} {digest}", _short(got) if got
+                         else "an empty file")
+
+
 @evaluator("file_text_is_digest")
-def file_text_is_digest(state: FinalState, path: str, of: str, algorithm: str = "sha256", length: int = 16,
-                        platform: str | None = None) -> Verdict:
-    """`path` reads the first `length` hex digits of the `algorithm` digest of the text `of` — the output of a
-    program that computes it when it runs (recomputed here on the host from the task's own value), so copying the
-    value `of` out of the program's text is not its output."""
-    want = digest_text(of, algorithm, length)
-    text = state.pull_text(path, platform)
+def file_text_is_digest(state: FinalState, path: str, of: str | None = None, file: str | None = None,
+                        algorithm: str = "sha256", length: int | None = None, platform: str | None = None) -> Verdict:
+    """`path` holds just the hex `algorithm` digest (its first `length` digits; None: all of it; upper or lower
+    case), in any encoding the platform's programs write (`text.decode_text`), of exactly one of:
+
+    - `of`, a text (its UTF-8 bytes): the output of a program that computes it when it runs, recomputed here from
+      the task's own value, so copying the value `of` out of the program's text is not its output;
+    - `file`, a file of the device (e.g. PowerShell's `Get-FileHash`): of the bytes it had at set-up (its
+      baseline; as it is now when an upstream subtask of a composed task made it), and `file` must still be
+      there as set up (`changed_since_setup`: not edited, hidden, linked or replaced), so the hash of a file
+      changed afterwards, or of another file, fails."""
+    if (of is None) == (file is None):
+        raise ConfigError("file_text_is_digest: give exactly one of `of` (a text) and `file` (a file's path)",
+                          field="evaluate.args", fix="pass `of` to hash a text, or `file` to hash a file's bytes")
+    algo = algorithm.lower().replace("-", "")
+    if file is None:
+        digest, what = digest_text(str(of), algo, length), f"{algorithm} check code of {_short(str(of))}:"
+    else:
+        data = state.baseline(file, platform)
+        data = data if data is not None else state.pull(file, platform)
+        if data is None:
+            return Verdict.check(False, f"the {algorithm} hash of {file} in {path}", f"no file at {file}")
+        digest, what = hashlib.new(algo, data).hexdigest()[:length], f"{algorithm} hash of {file}:"
+    text, why = read_answer(state, path, platform)
     if text is None:
-        return Verdict.check(False, f"{path} holding the {algorithm} check code {want} of {_short(str(of))}", "no file")
-    got = text.strip()
-    return Verdict.check(got == want, f"{path} holding the {algorithm} check code {want} of {_short(str(of))}",
-                         _short(got))
+        return Verdict.check(False, f"{path} holding the {what} {digest}", why)
+    verdict = check_digest(text, digest, what)
+    if not verdict.passed or file is None:
+        return verdict
+    return with_unchanged(state, verdict, f"{path} holding the {what} {digest}", platform, unchanged=[file])
 
 
 @evaluator("file_contains")

@@ -1,6 +1,7 @@
 """Where files are, judged the same way on every platform from `file_facts`: a file moved, renamed or copied, files
-sorted into a sub-folder, a file deleted to the trash, what a folder holds, a folder structure recreated, and what
-a task had to leave as it was (`changed_since_setup`, the one such check every evaluator uses).
+sorted into a sub-folder, a file deleted (to the trash or not, no copy of it kept), a file deleted to the trash,
+what a folder holds, a folder structure recreated, and what a task had to leave as it was (`changed_since_setup`,
+the one such check every evaluator uses).
 
 Every entry counts, hidden and system ones included: a leftover kept but hidden is a leftover, a hidden extra file
 is an extra file. Only a file the desktop itself writes into folders (`PlatformSpec.shell_files`, e.g. Explorer's
@@ -318,7 +319,7 @@ def file_in_trash(state: FinalState, original: str, kept: list[str] | None = Non
     plat = platform_of(state, platform)
     if plat.trash is None:
         raise ConfigError(f"file_in_trash: the {plat.name} platform has no trash", field="evaluate.func",
-                          fix="check the file's absence with file_absent instead")
+                          fix="check the deletion with file_deleted instead")
     original_sha = baseline_sha(state, original, plat.name)
     folder = parent(plat, original)
     facts = read_facts(state, entries=[original, *(kept or [])], trees=[folder] if original_sha else [],
@@ -334,6 +335,77 @@ def file_in_trash(state: FinalState, original: str, kept: list[str] | None = Non
         problems += copies_left(plat, facts.trees.get(folder) or {}, {basename(plat, original): original_sha}, set())
     return Verdict.check(not problems, f"{original} in the trash, the other files unchanged",
                          "; ".join(problems) or "so")
+
+
+# -- deleted -----------------------------------------------------------------------------------------------------
+def search_roots(plat: PlatformSpec, path: str) -> list[str]:
+    """Where copies of a deleted file are looked for: every place the user may keep files (`PlatformSpec.user_roots`)
+    and the file's own folder, when it is outside them."""
+    roots = list(plat.user_roots)
+    folder = parent(plat, path)
+    if folder and not any(plat.normalise(folder) == plat.normalise(r) or inside(plat, r, folder) for r in roots):
+        roots.append(folder)
+    return roots
+
+
+def trashed(plat: PlatformSpec, found: str, original: str) -> bool:
+    """Whether the file at `found` is the platform's trash holding `original`: a file under the trash folder
+    (`PlatformSpec.trash`: a freedesktop.org trash, or a Recycle Bin folder on any drive), or `original` renamed in
+    its own folder with the trash's mark (`PlatformSpec.trash_prefix`: Android's `.trashed-<expiry>-<name>`)."""
+    if plat.trash:
+        if plat.is_absolute(plat.trash):
+            if inside(plat, plat.trash, found):
+                return True
+        elif plat.normalise(plat.trash) in plat.normalise(found).split(plat.sep):
+            return True
+    if plat.trash_prefix and plat.normalise(parent(plat, found)) == plat.normalise(parent(plat, original)):
+        name, base = basename(plat, found), basename(plat, original)
+        marked = name[len(plat.trash_prefix):] if name.startswith(plat.trash_prefix) else ""
+        expiry, _, rest = marked.partition("-")
+        return expiry.isdigit() and rest == base
+    return False
+
+
+def check_deleted(plat: PlatformSpec, path: str, left: Entry, copies: list[str], changed: list[str],
+                  kept: list[str]) -> Verdict:
+    """The file at `path` is deleted: nothing there (`left`, hidden or not, a link too), no copy of its bytes kept
+    anywhere (`copies`: where they are, outside the trash), and nothing changed among the files of `kept`
+    (`changed`, as `changed_since_setup` says it)."""
+    want = f"{path} deleted (gone, or in the trash)" + (f" and the {len(kept)} other file(s) kept unchanged"
+                                                         if kept else "")
+    problems = [f"{path} still there ({left.describe()})"] if left.exists else []
+    if copies:
+        problems.append(f"its content still at {', '.join(copies[:3])}" + (
+            f" and {len(copies) - 3} more" if len(copies) > 3 else "") + ": moved or copied, not deleted")
+    problems += changed
+    return Verdict.check(not problems, want, "; ".join(problems) or "deleted, the others kept")
+
+
+@evaluator("file_deleted")
+def file_deleted(state: FinalState, path: str, kept: list[str] | None = None, platform: str | None = None) -> Verdict:
+    """The file at `path` is deleted — removed, or put in the platform's trash (`trashed`) — and not moved, copied
+    or hidden instead: nothing at `path` (hidden or not, not even a link), and no file anywhere the user may keep
+    files (`search_roots`: `PlatformSpec.user_roots` and its own folder) holds the bytes it had at set-up, under any
+    name, hidden or not, as a second name (hard link) or not — except files that held them at set-up too (listed
+    under `baseline`). Without a baseline (an input an upstream subtask of a composed task made, whose source may
+    rightly hold the same bytes) only its absence is checked. Every file of `kept` is still there unchanged
+    (`changed_since_setup`)."""
+    plat = platform_of(state, platform)
+    original = state.baseline(path, plat.name)
+    roots = search_roots(plat, path) if original is not None else []
+    facts = read_facts(state, entries=[path, *(kept or [])], search=roots,
+                       sizes=[len(original)] if original is not None else [], platform=plat.name)
+    copies = []
+    if original is not None:
+        sha = hashlib.sha256(original).hexdigest()
+        for where, entry in sorted((facts.found or {}).items()):
+            if entry.kind != "file" or entry.sha256 != sha or plat.normalise(where) == plat.normalise(path):
+                continue
+            if trashed(plat, where, path) or baseline_sha(state, where, plat.name) == sha:
+                continue
+            copies.append(label(where, entry) + (" (a second name of it: a hard link)" if entry.links > 1 else ""))
+    return check_deleted(plat, path, facts.entries[path], copies,
+                         changed_since_setup(state, kept, plat.name, facts=facts), list(kept or []))
 
 
 # -- what a folder holds -------------------------------------------------------------------------------------------

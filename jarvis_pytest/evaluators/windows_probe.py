@@ -1,6 +1,7 @@
 """The Windows getter: a small probe that reads what the control server's file API does not say — the facts of a
 path (a folder, a link, a hard link, its hidden and system attributes, its SHA-256), a folder's whole content,
-the processes (with their start times and image paths), the top-level windows and the Recycle Bin's raw records.
+the files of given sizes anywhere under given folders, the processes (with their start times and image paths),
+the top-level windows and the Recycle Bin's raw records.
 
 The probe is a Python script put on the device through the file API and run with the device's own embeddable
 CPython (`C:\\jarvis\\python\\pythonw.exe`, on both backends); it writes its findings as JSON to a file that is
@@ -21,7 +22,7 @@ from typing import Any
 
 from jarvis_pytest.devices.platforms import PlatformSpec
 from jarvis_pytest.errors import InfrastructureError
-from jarvis_pytest.evaluators.file_facts import NOTHING, Entry, Facts
+from jarvis_pytest.evaluators.file_facts import NOTHING, Entry, Facts, Search
 from jarvis_pytest.evaluators.state import FinalState
 from jarvis_pytest.evaluators.windows_recycle_bin import recycled_entries
 
@@ -80,6 +81,34 @@ def tree(root, depth=None, limit=5000):
             if len(items) >= limit:
                 return items
     return items
+
+
+def search(roots, sizes, limit=5000):
+    """Every regular file under `roots`, at any depth, whose size is one of `sizes`: full path -> its facts.
+    Links and other reparse points below a root (junctions such as "Application Data") are not entered; folders
+    that cannot be read are passed over."""
+    sizes, out, stack = set(sizes), {}, [r for r in roots if os.path.isdir(r)]
+    while stack:
+        folder = stack.pop()
+        try:
+            with os.scandir(folder) as it:
+                items = list(it)
+        except OSError:
+            continue
+        for item in items:
+            try:
+                st = item.stat(follow_symlinks=False)
+            except OSError:
+                continue
+            if stat.S_ISLNK(st.st_mode) or getattr(st, "st_file_attributes", 0) & 0x400:
+                continue
+            if stat.S_ISDIR(st.st_mode):
+                stack.append(item.path)
+            elif stat.S_ISREG(st.st_mode) and st.st_size in sizes:
+                out[item.path] = entry(item.path)
+                if len(out) >= limit:
+                    return out
+    return out
 
 
 def processes():
@@ -197,6 +226,8 @@ def main(req_path, out_path):
             out["windows"] = windows()
         if req.get("trash"):
             out["trash"] = trash(req["trash"])
+        if req.get("search"):
+            out["found"] = search(req["search"], req.get("sizes", []))
     except Exception:
         out["error"] = traceback.format_exc()
     with open(out_path, "w", encoding="utf-8") as f:
@@ -210,15 +241,18 @@ if __name__ == "__main__":
 
 def probe(state: FinalState, *, entries: list[str] | None = None, trees: list[str] | None = None,
           depth: int | None = None, processes: bool = False, windows: bool = False, trash: str | None = None,
-          heads: list[str] | None = None, platform: str | None = None) -> dict[str, Any]:
+          heads: list[str] | None = None, search: list[str] | None = None, sizes: list[int] | None = None,
+          platform: str | None = None) -> dict[str, Any]:
     """Run the probe on the device: facts of `entries` (paths), the content of `trees` (folders, `depth` levels
-    deep; None: all), the
-    processes, the top-level windows, the Recycle Bin (`trash`: the name of each drive's bin folder), with the
-    first bytes of files named as in `heads`. An InfrastructureError when it cannot run."""
+    deep; None: all), the processes, the top-level windows, the Recycle Bin (`trash`: the name of each drive's bin
+    folder), with the first bytes of files named as in `heads`; with `search` (folders) and `sizes`, every regular
+    file under them of one of those sizes (`found`). An InfrastructureError when it cannot run."""
     device = state.device(platform)
     folder = f"{PROBE_DIR}\\{uuid.uuid4().hex[:12]}"
     request = {"entries": entries or [], "trees": trees or [], "depth": depth, "processes": processes,
                "windows": windows, "trash": trash, "heads": heads or []}
+    if search:
+        request.update(search=list(search), sizes=list(sizes or []))
     device.upload(f"{folder}\\probe.py", PROBE.encode("utf-8"))
     device.upload(f"{folder}\\request.json", json.dumps(request).encode("utf-8"))
     try:
@@ -248,12 +282,14 @@ def as_entry(info: dict | None) -> Entry:
 
 
 def read_facts(state: FinalState, entries: list[str], trees: list[str], depth: int | None, trash: bool,
-               plat: PlatformSpec) -> Facts:
+               plat: PlatformSpec, search: Search | None = None) -> Facts:
     """`file_facts.read_facts` on Windows: one run of the probe."""
+    more = {"search": list(search.roots), "sizes": list(search.sizes)} if search else {}
     out = probe(state, entries=entries, trees=trees, depth=depth, trash=plat.trash if trash else None,
-                heads=list(plat.shell_files), platform=plat.name)
+                heads=list(plat.shell_files), platform=plat.name, **more)
     return Facts(entries={p: as_entry(out["entries"].get(p)) for p in entries},
                  trees={r: None if out["trees"].get(r) is None else
                         {rel.replace("/", "\\"): as_entry(info) for rel, info in out["trees"][r].items()}
                         for r in trees},
-                 trash=None if not trash else [(p, as_entry(d)) for p, d in recycled_entries(out["trash"])])
+                 trash=None if not trash else [(p, as_entry(d)) for p, d in recycled_entries(out["trash"])],
+                 found=None if not search else {p: as_entry(info) for p, info in (out.get("found") or {}).items()})

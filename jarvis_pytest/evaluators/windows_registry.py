@@ -1,5 +1,6 @@
-"""Checks of a Windows device's registry, `.reg` files, and the files Windows applications leave (Edge's favourites,
-PowerShell's text output), read on the host.
+"""Checks of a Windows device's registry and of `.reg` files, read on the host: a platform data store. (Files Windows
+programs write are judged by the platform-neutral evaluators — text in `text.py`/`files.py`, copies and downloads
+in `folders.py` — and Edge's favourites by `browser.py`, as Chromium's bookmarks.)
 
 How the registry is read: `reg query "<key>" /s` runs on the device (`state.run`) and its output is parsed here
 (`parse_reg_query`: REG_SZ, REG_EXPAND_SZ, REG_MULTI_SZ, REG_DWORD and REG_QWORD in hex, REG_BINARY, REG_NONE).
@@ -24,8 +25,6 @@ quit it, and the evaluator fails while a process of that image runs (the process
 from __future__ import annotations
 
 import fnmatch
-import hashlib
-import json
 import re
 import time
 import uuid
@@ -34,10 +33,8 @@ from typing import Any, Iterable
 
 from jarvis_pytest.devices.platforms import PLATFORMS
 from jarvis_pytest.errors import InfrastructureError
-from jarvis_pytest.evaluators.folders import changed_since_setup
 from jarvis_pytest.evaluators.registry import Verdict, evaluator
 from jarvis_pytest.evaluators.state import FinalState
-from jarvis_pytest.evaluators.text import decode_text
 from jarvis_pytest.evaluators.windows_probe import probe
 
 WINDOWS = PLATFORMS["windows"]
@@ -657,142 +654,5 @@ def reg_file_exports(state: FinalState, path: str, key: str, baseline: str, plat
     return check_reg_export(data, key, before, live)
 
 
-# -- text files Windows programs write (PowerShell, Notepad) ------------------------------------------------------------
-def decode_windows_text(data: bytes) -> tuple[str, str]:
-    """Text as Windows programs write it, and its encoding (`text.decode_text` with Windows' code page): UTF-16
-    LE/BE with a byte order mark (Windows PowerShell's `Out-File` and `>`), UTF-8 with or without one (PowerShell
-    7, `Set-Content -Encoding utf8`), else ANSI (`Set-Content` in Windows PowerShell, cmd's `echo >`). Bytes that
-    are none of them come back with undecodable bytes replaced, as "no text"."""
-    try:
-        found = decode_text(data, WINDOWS.text_codepage)
-    except ValueError as exc:
-        return data.decode("cp1252", errors="replace"), f"no text ({exc})"
-    return found.text, found.encoding
-
-
-def check_text_value(data: bytes, expected: str, ignore_case: bool = False, label: str = "") -> Verdict:
-    """The file's text, surrounding white space and line breaks aside, is exactly `expected` (in any encoding a
-    Windows program writes: see `decode_windows_text`)."""
-    text, encoding = decode_windows_text(data)
-    got = text.strip().strip("\ufeff").strip()
-    want = f"a text file holding just {expected!r}" + (f" ({label})" if label else "")
-    ok = got.casefold() == expected.casefold() if ignore_case else got == expected
-    shown = got if len(got) <= 100 else got[:100] + "..."
-    return Verdict.check(ok, want, f"{shown!r} ({encoding}, {len(data)} bytes)")
-
-
-@evaluator("text_file_holds")
-def text_file_holds(state: FinalState, path: str, expected: Any, ignore_case: bool = False,
-                    unchanged: list[str] | None = None, platform: str | None = None) -> Verdict:
-    """The text file `path` holds just `expected` (a number or a word; white space around it aside), in any
-    encoding PowerShell or cmd writes; the files `unchanged` (listed under `baseline`) are as set up
-    (`changed_since_setup`)."""
-    data = state.pull(path, platform)
-    want = f"a text file holding just {str(expected)!r}"
-    if data is None:
-        return Verdict.check(False, want, f"no file at {path}")
-    verdict = check_text_value(data, str(expected), ignore_case)
-    damage = changed_since_setup(state, unchanged, platform)
-    if verdict.passed and damage:
-        return Verdict.check(False, want + ", the files it was read from kept", "damage: " + _said(damage))
-    return verdict
-
-
-@evaluator("text_file_holds_hash")
-def text_file_holds_hash(state: FinalState, path: str, of: str, algorithm: str = "sha256",
-                         platform: str | None = None) -> Verdict:
-    """The text file `path` holds just the hex `algorithm` hash (`Get-FileHash`'s default: SHA256; upper or lower
-    case) of the file `of` as set up (its baseline; as it is now when an upstream subtask made it), and `of` is
-    still there unchanged."""
-    algo = algorithm.lower().replace("-", "")
-    want = f"the {algorithm.upper()} hash of {of} in {path}"
-    original = state.baseline(of, platform)
-    current = state.pull(of, platform)
-    if current is None:
-        return Verdict.check(False, want, f"no file at {of} (it was to be kept)")
-    if original is not None and current != original:
-        return Verdict.check(False, want, f"{of} changed since set-up (the hash of the file as given was asked)")
-    digest = hashlib.new(algo, original if original is not None else current).hexdigest()
-    data = state.pull(path, platform)
-    if data is None:
-        return Verdict.check(False, want, f"no file at {path}")
-    return check_text_value(data, digest, ignore_case=True, label=f"{algorithm.upper()} of {of}")
-
-
-@evaluator("file_matches_original")
-def file_matches_original(state: FinalState, path: str, reference: str, platform: str | None = None) -> Verdict:
-    """`path` has the bytes `reference` had right after set-up (its baseline; as it is now when an upstream
-    subtask made it): a download or copy of the file the task served, not a page, an error or a partial file."""
-    original = state.baseline(reference, platform)
-    if original is None:
-        original = state.pull(reference, platform)
-    want = f"{path} with the bytes of {reference}" + (f" ({len(original)} bytes)" if original is not None else "")
-    if original is None:
-        return Verdict.check(False, want, f"no file at {reference}")
-    data = state.pull(path, platform)
-    if data is None:
-        return Verdict.check(False, want, f"no file at {path}")
-    if data == original:
-        return Verdict.check(True, want, "identical")
-    head = data[:40].decode("utf-8", "replace")
-    return Verdict.check(False, want, f"{len(data)} different bytes (starting {head!r})")
-
-
-# -- Microsoft Edge's favourites -------------------------------------------------------------------------------------------
-EDGE_BOOKMARKS = WINDOWS.home + "\\AppData\\Local\\Microsoft\\Edge\\User Data\\Default\\Bookmarks"
-EDGE_SETTLE_SECONDS = 6.0
-
-
-def edge_checksums(data: dict) -> set[str]:
-    """The checksums Edge may stamp on a `Bookmarks` file: Chromium's (MD5 over the nodes of bookmark_bar, other
-    and synced, see `browser.bookmarks_checksum`), and the same walk going on through the roots Edge adds (e.g.
-    `workspaces`) in the file's order, since Edge's codec may count them too."""
-    from jarvis_pytest.evaluators.browser import ROOT_ORDER, bookmarks_checksum
-
-    sums = {bookmarks_checksum(data)}
-    roots = data.get("roots") or {}
-    extra = [k for k in roots if k not in ROOT_ORDER and isinstance(roots[k], dict)]
-    if extra:
-        sums.add(bookmarks_checksum(data, [*ROOT_ORDER, *extra]))
-    return sums
-
-
-def check_edge_favorite(text: str | None, url: str, name: str | None = None) -> Verdict:
-    """A favourite of `url` (named `name`, when given) is among the bookmarks of `text`, a file Edge wrote (its
-    checksum is one Edge computes: `edge_checksums`)."""
-    from jarvis_pytest.evaluators.browser import bookmarks
-
-    want = f"a favourite of {url}" + (f" named {name!r}" if name else "") + " in Edge's favourites"
-    if text is None:
-        return Verdict.check(False, want, "no Bookmarks file")
-    try:
-        data = json.loads(text)
-        marks = bookmarks(text)
-    except (ValueError, AttributeError) as exc:
-        return Verdict.check(False, want, f"an unreadable Bookmarks file ({exc})")
-    ok = any(u == url and (name is None or n.strip() == name.strip()) for n, u in marks)
-    if ok and data.get("checksum") not in edge_checksums(data):
-        return Verdict.check(False, want, f"the favourite in a file Edge did not write (checksum "
-                                          f"{data.get('checksum')!r} does not match its content): edited by hand")
-    return Verdict.check(ok, want, repr(marks[:10]) if marks else "no favourites")
-
-
-@evaluator("edge_favorite_exists")
-def edge_favorite_exists(state: FinalState, url: str, name: str | None = None, path: str = EDGE_BOOKMARKS,
-                         platform: str | None = None) -> Verdict:
-    """Microsoft Edge has a favourite of `url` (named `name`, when given) in any folder, in the `Bookmarks` file of
-    its profile (Edge is Chromium: the same JSON, stamped with an MD5 checksum over its nodes, so a file edited by
-    hand while Edge keeps its favourites in memory does not count). Edge writes the file a moment after a change:
-    it is read again for a few seconds before a missing favourite is reported."""
-    deadline = time.monotonic() + EDGE_SETTLE_SECONDS
-    while True:
-        data = state.device(platform).download(path) if state.exists(path, platform) else None
-        verdict = check_edge_favorite(None if data is None else data.decode("utf-8-sig", errors="replace"), url, name)
-        if verdict.passed or time.monotonic() > deadline:
-            return verdict
-        time.sleep(0.5)
-
-
 __all__ = ["RegValue", "RegKey", "RegFile", "Branch", "parse_reg_query", "parse_reg_file", "read_branch",
-           "branch_changes", "check_values", "check_reg_export", "check_text_value", "decode_windows_text", "check_edge_favorite", "edge_checksums",
-           "same_picture", "typed_value", "norm_key"]
+           "branch_changes", "check_values", "check_reg_export", "same_picture", "typed_value", "norm_key"]
