@@ -13,8 +13,9 @@ chains a weak or lazy agent could leave, each carried out on fresh devices after
 - `upstream_skipped`: the upstream subtask left out; the transfer carries whatever is at the source.
 
 Each must fail the task, and at the subtask that should catch it: the transfer (the upstream too, for
-`upstream_skipped`). A later subtask may fail as well (it works on what the broken chain left). Steps that fail
-because the chain is broken (a download of a file never uploaded) are recorded, and the rest of the plan goes on.
+`upstream_skipped`). A later subtask may fail as well (it works on what the broken chain left). A step that fails
+because the chain is broken (a download of a file never uploaded) is recorded, the rest of its subtask's steps are
+skipped (each would wait out its timeout), and the rest of the plan goes on.
 """
 
 from __future__ import annotations
@@ -146,8 +147,16 @@ def _on_fresh_devices(task: Task, negative: ChainNegative, platforms: tuple[str,
         drive = DriveWatch(env, task)
         drive.start()
         windows = SubtaskWindows()
-        problems = [f"{_label(item)}: {err}" for item in negative.plan
-                    if (err := _carry_out(item, env, windows)) is not None]
+        problems: list[str] = []
+        broken: set[int] = set()  # subtasks one of whose steps failed: the rest of their steps is skipped (each
+        for item in negative.plan:  # would wait out its own timeout on what the broken chain left)
+            if isinstance(item, PlanItem) and item.subtask in broken:
+                continue
+            err = _carry_out(item, env, windows)
+            if err is not None:
+                problems.append(f"{_label(item)}: {err}")
+                if isinstance(item, PlanItem):
+                    broken.add(item.subtask)
         return problems, evaluate_subtasks(subs, env.devices, env.transfer, baselines, task.edges, drive.turn())
     finally:
         env.close()
