@@ -53,7 +53,8 @@ test-android: setup host-packages
 	$(BIN)/pytest -p no:cacheprovider tests/test_library_android.py -m android_live -rs $(PYTEST_ARGS)
 
 ## bench: run every task this machine's devices can run (AGENT=oracle by default; others are skipped with the
-## reason) and write the tables and a report; MARKERS="ubuntu and atomic" narrows it
+## reason) and write the tables and a report; MARKERS="ubuntu and atomic" narrows it. Tasks the agent fails are
+## results (exit 0); an error, a timeout or any failure of the oracle exits 1
 bench: images
 	$(BIN)/pytest tasks -n $(WORKERS) --agent $(AGENT) $(if $(MARKERS),-m "$(MARKERS)") $(PYTEST_ARGS)
 

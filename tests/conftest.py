@@ -2,10 +2,19 @@
 
 from __future__ import annotations
 
+import os
+import tempfile
 import uuid
+from pathlib import Path
 
 import pytest
 from filelock import FileLock
+
+# Every run the tests start, in this process or a subprocess, keeps its run lock in one folder of its own: each
+# test's start-up sweep then sees the locks and kept records of the others' runs (a sweep reading another folder
+# would take a live test run for a dead one), and the host's own runs' records stay out of the tests' reach.
+TEST_LOCKS = Path(tempfile.gettempdir()) / "jarvis-runs-of-tests"
+os.environ["JARVIS_RUN_LOCKS"] = str(TEST_LOCKS)
 
 
 @pytest.fixture(scope="session")
@@ -101,3 +110,11 @@ def within_rules(network_name: str) -> int:
     bridge = bridge_name(network_name, egress=False)
     rules = subprocess.run(["iptables", "-S", "DOCKER-USER"], capture_output=True, text=True, check=True).stdout
     return rules.count(f"-i {bridge} -o {bridge} -j ACCEPT")
+
+
+@pytest.fixture
+def only_kept_test():
+    """`jarvis cleanup --kept` removes every ended run's kept devices: the tests that keep devices or call it take
+    turns (under xdist one would remove what another kept while it checks them)."""
+    with FileLock(str(TEST_LOCKS.parent / "jarvis-kept-tests.lock")):
+        yield

@@ -191,7 +191,9 @@ def test_extract_point_tolerates(text, point):
 
 @pytest.mark.parametrize("model", sorted(CONVENTIONS))
 @pytest.mark.parametrize("answer", ["", "I cannot find it.", "<answer>nothing here</answer>",
-                                    '{"x": "left"}', "[1, 2, 3]"])
+                                    '{"x": "left"}', "[1, 2, 3]",
+                                    # numbers no screen has (issue 37: the model's garbage, the agent's step error)
+                                    '{"x": "nan", "y": 5}', '{"coordinate": [1e400, 2]}', '{"x": "inf", "y": "-inf"}'])
 def test_unparseable_answer_is_a_grounding_error(model, answer, server):
     served = f"bad-{model}-{len(answer)}"
     server.respond_with(lambda req: answer, model=served)

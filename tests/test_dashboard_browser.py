@@ -198,7 +198,7 @@ def test_live_view_follows_a_real_run(page, base_url, results_root, tmp_path):
         expect(card.locator("[data-testid=live-steps]")).not_to_have_text(f"{shown[0]} steps", timeout=30_000)
         expect(card.locator("[data-testid=live-shot]")).to_have_attribute("src", re.compile(r"step_\d+_ubuntu\.png$"))
         out, _ = proc.communicate(timeout=180)
-        assert proc.returncode == 1, out[-3000:]  # the replayed clicks do not write the note: the task fails
+        assert proc.returncode == 0, out[-3000:]  # the replayed clicks do not write the note: the task fails (a result)
         expect(page.locator("[data-testid=count-failed]")).to_contain_text("1", timeout=30_000)
         expect(page.locator("[data-testid=count-running]")).to_contain_text("0")
         expect(page.locator("[data-testid=live-task]")).to_have_count(0)

@@ -257,14 +257,19 @@ def test_wait_done_fail(device):
 TEXT = "Exact: <tag attr='1'> {braces} [x] & | ~ ` \\ — Zoë, naïve, ß, €5, 中文, ё\tend\nline 2 ~!@#$%^&*()_+"
 
 
-def test_typing_is_exact_in_a_real_editor(device, launch):
-    path = "/home/user/Documents/typed.txt"
+def in_mousepad(device, launch, path: str) -> None:
+    """Mousepad on a new file at `path`, the active window."""
     device.run(f"rm -f {path}; mkdir -p /home/user/Documents")
     launch("mousepad", path)
     r = device.run("for i in $(seq 600); do xdotool search --onlyvisible --class mousepad windowactivate "
                    "2>/dev/null; xdotool getactivewindow getwindowname | grep -q Mousepad && exit 0; sleep 0.05;"
                    " done; exit 1", timeout=60)
     assert r.returncode == 0, "mousepad never became the active window"
+
+
+def test_typing_is_exact_in_a_real_editor(device, launch):
+    path = "/home/user/Documents/typed.txt"
+    in_mousepad(device, launch, path)
     assert device.act(A.Typing(text=TEXT)).ok
     # KEY_DOWN/KEY_UP of a character the layout lacks press and release one key; HOTKEY shift+a is "A".
     assert device.act(A.KeyDown(key="ü")).ok and device.act(A.KeyUp(key="ü")).ok
@@ -273,6 +278,21 @@ def test_typing_is_exact_in_a_real_editor(device, launch):
     want = TEXT + "üA"
     wait_for(lambda: device.run(f"cat {path}").stdout == want, what="the typed file saved")
     assert device.download(path).decode("utf-8") == want
+
+
+def test_typing_stays_exact_after_a_script_rebound_the_spare_keys(device, launch):
+    """A PYAUTOGUI script runs in a child process with an X connection of its own, and binds the characters it
+    types to the server's spare keycodes too (300 distinct ones: every spare keycode anew): the server's typing
+    afterwards still types what it is asked, not what the script left bound."""
+    path = "/home/user/Documents/rebound.txt"
+    in_mousepad(device, launch, path)
+    by_script = "".join(chr(0x5000 + i) for i in range(300))
+    assert device.act(A.Typing(text="中")).ok
+    assert device.act(A.Pyautogui(script=f"import pyautogui\npyautogui.write({by_script!r})\n")).ok
+    assert device.act(A.Typing(text="中文")).ok
+    assert device.act(A.Hotkey(keys=["ctrl", "s"])).ok
+    want = "中" + by_script + "中文"
+    wait_for(lambda: device.run(f"cat {path}").stdout == want, what="the typed file saved")
 
 
 # -- files, commands, applications ------------------------------------------------------------------------------

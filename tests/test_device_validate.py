@@ -28,7 +28,11 @@ REQUEST_MODELS: dict[str, type[BaseModel]] = {"run": P.RunRequest, "launch": P.L
 ACTION_MODELS: dict[str, type[BaseModel]] = {cls.model_fields["type"].default: cls
                                              for cls in A._Action.__subclasses__()}
 PROBES = [None, True, False, 0, 1, -1, 2, 3, 4, 0.5, 1.0, -0.5, 59.5, 60, 60.5, 120, 120.5, 3600, 3600.5, 10_000,
-          10_001, "", "a", "5", "left", "home", [], ["a"], ["a", ""], [1], {}, {"a": 1}]
+          10_001, "", "a", "5", "left", "home", [], ["a"], ["a", ""], [1], {}, {"a": 1},
+          # the bounds of the action space (issue 37: an agent's garbage is refused, never sent on)
+          100, 101, -100, -101, 32_767, 32_768, -32_767, -32_768, 1e9, 1e300, float("nan"), float("inf"),
+          "\ud800", "a\udfffb", "\U0001F600", "x" * 64, "x" * 65, "x" * 10_000, "x" * 10_001, "x" * 20_001,
+          ["a"] * 16, ["a"] * 17, ["x" * 65], ["\ud800"]]
 
 
 def _valid(spec: tuple):
@@ -130,3 +134,22 @@ def test_the_device_servers_import_no_pydantic():
             "print(sorted(m for m in sys.modules if m.split('.')[0] in ('pydantic', 'pydantic_core')))")
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]", out.stdout
+
+
+@pytest.mark.parametrize("body, message", [
+    (b'{"type": "SCROLL", "dy": 1e9}', r"SCROLL\.dy: must be an integer in \[-100, 100\], not 1000000000"),
+    (b'{"type": "SCROLL", "dy": NaN}', r"SCROLL\.dy: must be an integer, not NaN"),
+    (b'{"type": "CLICK", "x": Infinity, "y": 1}', r"CLICK\.x: must be an integer or null, not Infinity"),
+    (b'{"type": "MOVE_TO", "x": 40000, "y": 1}', r"MOVE_TO\.x: must be an integer in \[-32767, 32767\]"),
+    (b'{"type": "TYPING", "text": "a\\ud800"}', r"TYPING\.text: holds a lone surrogate \(U\+D800\) at character 1"),
+    (b'{"type": "TYPING", "text": "' + b"x" * 10_001 + b'"}', r"TYPING\.text: must be at most 10000 characters"),
+    (b'{"type": "HOTKEY", "keys": [' + b",".join([b'"a"'] * 17) + b"]}", r"HOTKEY\.keys: must hold at most 16"),
+    (b'{"type": "HOTKEY", "keys": ["ctrl", ""]}', r"HOTKEY\.keys\[1\]: must not be empty"),
+    (b'{"type": "CLICK", "x": true, "y": 1}', r"CLICK\.x: must be an integer or null, not true"),
+    (b'{"type": "PYAUTOGUI", "script": "\\udfff"}', r"PYAUTOGUI\.script: holds a lone surrogate"),
+])
+def test_an_agents_garbage_is_refused_by_the_device_too(body, message):
+    """Issue 37: what the action models refuse, a device server refuses (a 400, the agent's step error) even when
+    it arrives from elsewhere, with the field and the bound named."""
+    with pytest.raises(V.Invalid, match=message):
+        V.action(body)

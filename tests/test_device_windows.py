@@ -479,7 +479,7 @@ def test_the_oracle_acts_on_its_subtasks_window_not_on_another_of_the_same_title
     B's document (not A's, not Notepad's), and Alt+F opens B's File menu (B holds the foreground)."""
     from types import SimpleNamespace
 
-    from jarvis_pytest.agents.oracle import OracleAgent
+    from jarvis_pytest.agents.oracle import OracleAgent, brief
     from jarvis_pytest.agents.protocol import TaskContext
     from jarvis_pytest.tasks.model import Launch, SolutionStep
 
@@ -497,8 +497,8 @@ def test_the_oracle_acts_on_its_subtasks_window_not_on_another_of_the_same_title
                                 solution=[SolutionStep(action={"type": "TYPING", "text": "fresh "}),
                                           SolutionStep(action={"type": "HOTKEY", "keys": ["alt", "f"]})])
         agent = OracleAgent()
-        agent.reset(TaskContext("two-windows", "-", ("windows",), subtasks=(earlier, later)))
-        agent.attach_devices({"windows": device})
+        agent.reset(TaskContext("two-windows", "-", ("windows",)))
+        assert brief(agent, (earlier, later), {"windows": device})
         assert [(p.subtask, p.kind) for p in agent.queue] == [(1, "open"), (1, "focus"), (1, "step"), (1, "step")]
         steps = []
         while True:
@@ -694,6 +694,7 @@ def test_transfer_from_windows_to_ubuntu_through_the_drive(docker, lifecycle):
     import hashlib
 
     from jarvis_pytest.agents.builtin import OracleAgent
+    from jarvis_pytest.agents.oracle import brief
     from jarvis_pytest.agents.protocol import TaskContext
     from jarvis_pytest.plugin.evaluation import evaluate_subtasks
     from jarvis_pytest.plugin.setup_steps import run_setup
@@ -712,8 +713,8 @@ def test_transfer_from_windows_to_ubuntu_through_the_drive(docker, lifecycle):
         before = evaluate_subtasks([sub], env.devices, env.transfer)
         assert not any(e.passed for v in before for e in v.evaluators), before
         oracle = OracleAgent()
-        oracle.reset(TaskContext("t", sub.instruction, ("ubuntu", "windows"), subtasks=(sub,)))
-        oracle.attach_devices(env.devices)
+        oracle.reset(TaskContext("t", sub.instruction, ("ubuntu", "windows")))
+        assert brief(oracle, (sub,), env.devices)
         steps = [oracle.act({}, []) for _ in range(len(sub.solution) + 1)]
         assert [s.action.type for s in steps] == ["WAIT"] * len(sub.solution) + ["DONE"], steps[-1].reasoning
         assert [s.platform for s in steps[:2]] == ["windows", "ubuntu"]

@@ -94,7 +94,7 @@ def test_results_and_report_files(oracle_run):
 
 def test_noop_fails_every_task_with_reasons(device_images, tmp_path):
     proc = bench(tmp_path, "--agent", "noop", "-n", "2")
-    assert proc.returncode == 1
+    assert proc.returncode == 0, proc.stdout[-3000:]  # the agent's failures are results, not a failed run
     results, _ = load_results(tmp_path)
     assert len(results) == 6 and all(r.status == "failed" for r in results)
     assert "file_text_replaced: expected" in proc.stdout and "found no file" in proc.stdout
@@ -183,7 +183,7 @@ def test_step_timeout_and_module_class_agent(device_images, tmp_path):
     assert result.agent == {"name": "slow", "seconds": 20.0}
 
 
-def test_keep_devices_leaves_them_running_and_says_how_to_reach_them(device_images, tmp_path):
+def test_keep_devices_leaves_them_running_and_says_how_to_reach_them(device_images, tmp_path, only_kept_test):
     cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:xdist", str(REPO / "tasks"),
            "--results-dir", str(tmp_path), "--instances", "1", "-k", "thunar-rename_file", "--agent", "noop", "--keep-devices"]
     proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=300)

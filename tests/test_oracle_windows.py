@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from jarvis_pytest.agents.oracle import OracleAgent, SubtaskWindows, carry_out, oracle_plan
+from jarvis_pytest.agents.oracle import OracleAgent, SubtaskWindows, brief, carry_out, oracle_plan
 from jarvis_pytest.agents.protocol import TaskContext
 from jarvis_pytest.devices.base import ActionOutcome, CommandResult
 from jarvis_pytest.devices.protocol import LaunchResponse
@@ -77,8 +77,8 @@ def subtasks(platform: str = "windows"):
 
 def run_agent(device) -> list:
     agent = OracleAgent()
-    agent.reset(TaskContext("t", "-", (device.platform,), subtasks=subtasks(device.platform)))
-    agent.attach_devices({device.platform: device})
+    agent.reset(TaskContext("t", "-", (device.platform,)))
+    assert brief(agent, subtasks(device.platform), {device.platform: device})
     steps = []
     while True:
         step = agent.act({}, [])

@@ -73,4 +73,5 @@ class ReplayAgent:
         return {"name": self.name, "file": str(self.path)}
 
 
+#: `oracle` is told the solution by `oracle.brief`, which recognises its class object, not this name.
 BUILTIN_AGENTS = {"oracle": OracleAgent, "noop": NoopAgent, "replay": ReplayAgent}

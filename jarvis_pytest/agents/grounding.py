@@ -98,7 +98,9 @@ def numbers(text: str) -> list[float]:
 
 
 def point_of(values: list[float]) -> tuple[float, float]:
-    """A point from 2 numbers, or the centre of a 4-number box (x1, y1, x2, y2)."""
+    """A point from 2 numbers, or the centre of a 4-number box (x1, y1, x2, y2); finite ones only."""
+    if not all(math.isfinite(v) for v in values):
+        raise GroundingError(f"a point needs finite numbers, not {values}")
     if len(values) == 2:
         return values[0], values[1]
     if len(values) == 4:
@@ -125,8 +127,8 @@ def _point_in_json(obj: Any) -> tuple[float, float] | None:
     if isinstance(obj, dict):
         if "x" in obj and "y" in obj:
             try:
-                return float(obj["x"]), float(obj["y"])
-            except (TypeError, ValueError):
+                return point_of([float(obj["x"]), float(obj["y"])])
+            except (TypeError, ValueError, GroundingError):
                 return None
         for key in _POINT_KEYS:
             value = obj.get(key)

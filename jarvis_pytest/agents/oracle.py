@@ -7,6 +7,11 @@ them). Every GUI step knows the window it acts on (`SubtaskWindows`): on a devic
 subtask's window is one window, not a title, and it is checked to hold the foreground before each of its GUI
 actions. The quality gate changes plans to make near-miss wrong chains (`plugin/chain_negatives.py`) and carries
 them out directly (`carry_out`); the agent carries the plan out through the harness's step loop.
+
+The oracle is the one agent that sees the solution and holds the devices, and it gets them through `brief`, not
+through the agent protocol: `brief` hands them to an instance of exactly `OracleAgent` (the class object, not its
+name, a subclass or a look-alike) and to nothing else. `OracleAgent` has slots, so an instance's methods cannot
+be swapped for others that read what it was handed.
 """
 
 from __future__ import annotations
@@ -196,36 +201,36 @@ def carry_out(item: PlanItem, devices: dict[str, Device], windows: SubtaskWindow
 
 
 class OracleAgent:
-    """Carries out the task's oracle plan (`oracle_plan`).
+    """Carries out the task's oracle plan (`oracle_plan`), handed to it by `brief` after `reset`.
 
     A solution step is either `{"action": {...}}` (an action of the unified action space, sent through the
     harness like any agent's action) or `{"command": "...", "user": ..., "platform": ...}` (run on the device
-    directly; the oracle is the one agent the harness hands its devices, through `attach_devices`). A step's
-    platform defaults to its subtask's platform. Each command is one step of the trajectory, on its device, with
-    the command, its return code, its time and the end of its output (as a WAIT(0) action, so replays skip it).
-    A failing command ends the task with FAIL and the command's output as reasoning.
+    directly, on the devices `brief` handed it). A step's platform defaults to its subtask's platform. Each
+    command is one step of the trajectory, on its device, with the command, its return code, its time and the end
+    of its output (as a WAIT(0) action, so replays skip it). A failing command ends the task with FAIL and the
+    command's output as reasoning; so does a task it was not briefed on.
     """
 
+    __slots__ = ("options", "devices", "queue", "last_platform", "failed", "windows", "briefed")
     name = "oracle"
 
     def __init__(self, options: dict[str, Any] | None = None):
         self.options = dict(options or {})
-        self.devices: dict[str, Device] = {}
-        self.queue: list[PlanItem] = []
-        self.last_platform: str | None = None
-        self.failed: AgentStep | None = None
-        self.windows = SubtaskWindows()
+        self.reset(TaskContext(task_id="", instruction="", platforms=()))
 
     def reset(self, task: TaskContext) -> None:
-        self.queue = oracle_plan(task.subtasks)
-        self.last_platform = task.platforms[0] if task.platforms else None
-        self.failed = None
+        """Forget the previous task; the plan and the devices of this one come with `brief`."""
+        self.devices: dict[str, Device] = {}
+        self.queue: list[PlanItem] = []
+        self.last_platform: str | None = task.platforms[0] if task.platforms else None
+        self.failed: AgentStep | None = None
         self.windows = SubtaskWindows()
-
-    def attach_devices(self, devices: dict[str, Device]) -> None:
-        self.devices = devices
+        self.briefed = False
 
     def act(self, observations: dict[str, Observation], history: list[HistoryEntry]) -> AgentStep:
+        if not self.briefed:
+            return AgentStep(platform=self.last_platform, action=Fail(),
+                             reasoning="oracle: the harness handed it no solution for this task (`brief`)")
         if self.failed is not None:
             return self.failed
         if not self.queue:
@@ -272,3 +277,16 @@ class OracleAgent:
 
     def config(self) -> dict[str, Any]:
         return {"name": self.name}
+
+
+def brief(agent: Any, subtasks: Sequence[Any], devices: dict[str, Device]) -> bool:
+    """Hand the task's solution (its formatted subtasks, in execution order) and its devices to `agent` if it is
+    the built-in oracle: an instance of exactly `OracleAgent`, this module's class object (no name, attribute,
+    subclass or copy of it qualifies). Call it after `agent.reset`. Whether `agent` was briefed; any other agent
+    is handed nothing."""
+    if type(agent) is not OracleAgent:
+        return False
+    agent.queue = oracle_plan(subtasks)
+    agent.devices = dict(devices)
+    agent.briefed = True
+    return True

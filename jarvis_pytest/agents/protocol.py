@@ -5,6 +5,12 @@ the benchmark (devices a task does not use carry only their initial screenshot, 
 history of earlier steps, errors included. The agent answers one ``AgentStep``: the target platform, the action
 in the unified action space, and its reasoning. An agent that cannot produce a valid action returns a step with
 ``error`` set and ``action=None``; the harness records it and feeds the error back in the history.
+
+What an agent is given is all it is told: the task's instruction, its platforms and the transfer drive's address
+and login (`TaskContext`), then each step's observations (screenshots, sizes, accessibility text) and the history
+of its own earlier steps. Every one of them holds plain values (strings, numbers, bytes, tuples, dicts), never a
+task, a subtask, an evaluator or a device. The solution, the near-miss states and the evaluators' arguments reach
+only the built-in oracle, through `jarvis_pytest.agents.oracle.brief`, which nothing in this protocol carries.
 """
 
 from __future__ import annotations
@@ -18,13 +24,12 @@ from jarvis_pytest.devices.base import Observation
 
 @dataclass(frozen=True)
 class TaskContext:
-    """What an agent is told about a task before it starts."""
+    """What an agent is told about a task before it starts (and nothing more: no solution, no evaluator)."""
 
     task_id: str
     instruction: str
     platforms: tuple[str, ...]  # the platforms the task uses
-    transfer: dict[str, str] = field(default_factory=dict)  # url, user, password of the network drive
-    subtasks: tuple[Any, ...] = ()  # the formatted subtasks (`tasks.model.Subtask`); only the oracle may look
+    transfer: dict[str, str] = field(default_factory=dict)  # url, user, password, folder, flavour of the drive
 
 
 @dataclass

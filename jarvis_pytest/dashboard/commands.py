@@ -56,6 +56,8 @@ def list_runs(args: argparse.Namespace) -> int:
         print(f"{r['id']}\t{r.get('state', '?')}\t{r.get('agent_name') or '-'}\t"
               f"{c.get('done', 0)}/{c.get('total', 0)} done\t{c.get('passed', 0)} passed\t"
               f"{c.get('error', 0)} errors\t{c.get('pending', 0) + c.get('interrupted', 0) + c.get('running', 0)} not finished")
+        for problem in r.get("problems") or []:  # each file that cannot be read, by name, under its run
+            print(f"  unreadable: {problem['file']}: {problem['message']}")
     return 0
 
 

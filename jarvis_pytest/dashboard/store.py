@@ -152,8 +152,9 @@ class ResultsStore:
         run_dir = self.run_dir(run_id)
         problems: list[dict[str, str]] = []
         meta, bad = load_json(self.cache, run_dir / "run.json")
-        if meta is not None and not isinstance(meta, dict):
-            bad = "not a JSON object"
+        if meta is not None and not bad:
+            bad = run_state.meta_problem(meta)
+        meta_unreadable = bool(bad)  # its state cannot be told: shown as "unreadable", never as "in progress"
         if bad:
             problems.append(_problem(self._rel(run_dir / "run.json"), bad))
             meta = None
@@ -182,7 +183,7 @@ class ResultsStore:
         started = (meta or {}).get("started") or min((t["started"] for t in tasks if t["started"]), default="")
         data: dict[str, Any] = {
             "id": run_dir.name,
-            "state": _state(run_dir, meta, ended, counts),
+            "state": "unreadable" if meta_unreadable else _state(run_dir, meta, ended, counts),
             "agent": agent,
             "agent_name": agent.get("name", "") if isinstance(agent, dict) else str(agent),
             "started": started,
@@ -208,6 +209,9 @@ class ResultsStore:
                 runs.append(self._run(run_id, with_tasks=False))
             except (NotFound, OSError) as exc:  # removed while we looked
                 runs.append({"id": run_id, "state": "unreadable", "problems": [_problem(run_id, str(exc))]})
+            except Exception as exc:  # one run this reader cannot make sense of never hides the others
+                runs.append({"id": run_id, "state": "unreadable", "problems": [
+                    _problem(f"{run_id}/run.json", f"cannot be shown ({exc.__class__.__name__}: {exc})")]})
         return {"root": str(self.root), "runs": runs}
 
     def run(self, run_id: str) -> dict[str, Any]:

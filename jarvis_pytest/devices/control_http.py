@@ -16,6 +16,8 @@ from urllib.parse import parse_qs, urlsplit
 from jarvis_pytest.devices import validate
 
 MAX_BODY = 512 * 1024 * 1024
+ACTION_SECONDS = 20.0   # what one action may take on a device (the harness waits 30 s for its answer)
+TYPE_CHUNK = 100        # characters typed between two looks at the clock
 HEALTH_WAIT_MAX = 5.0   # seconds a `GET /health?wait=S` may hold its answer
 HEALTH_RECHECK = 0.05   # seconds between the server's own readiness checks while it holds one
 
@@ -175,7 +177,7 @@ def execute(a: dict, kb: Any, platform: str, pyautogui: Callable[[str], None]) -
     elif t == "SCROLL":
         kb.scroll(a.get("dx", 0), a.get("dy", 0), a.get("x"), a.get("y"))
     elif t == "TYPING":
-        kb.type(a["text"])
+        type_within(kb, a["text"], ACTION_SECONDS)
     elif t in ("KEY_DOWN", "KEY_UP"):
         kb.key(a["key"], t == "KEY_DOWN")
     elif t == "HOTKEY":
@@ -187,12 +189,25 @@ def execute(a: dict, kb: Any, platform: str, pyautogui: Callable[[str], None]) -
     elif t == "SYSTEM_BUTTON":
         raise HttpError(400, f"SYSTEM_BUTTON (an Android system button) is not supported on {platform}")
     elif t == "PYAUTOGUI":
+        from jarvis_pytest.devices.pyautogui_compat import ScriptError
+
         try:
             pyautogui(a["script"])
-        except (Exception, SystemExit) as exc:  # the script's own error is the agent's to see, not a server failure
-            raise HttpError(400, f"PYAUTOGUI script failed: {exc.__class__.__name__}: {exc}") from None
+        except ScriptError as exc:  # the script's own doing is the agent's to see, not a server failure
+            raise HttpError(400, f"PYAUTOGUI script failed: {exc}") from None
     else:
         raise HttpError(400, f"unknown action type {t}")
+
+
+def type_within(kb: Any, text: str, seconds: float) -> None:
+    """Type `text` with `kb`, a chunk at a time; past `seconds` stop and refuse the rest (an HttpError(400) that
+    says how much was typed), so that no text keeps a device busy past the harness's wait for its answer."""
+    deadline = time.monotonic() + seconds
+    for i in range(0, len(text), TYPE_CHUNK):
+        if i and time.monotonic() >= deadline:
+            raise HttpError(400, f"typed the first {i} of {len(text)} characters: the rest did not fit the "
+                                 f"{seconds:g} s one action may take (type it in another step)")
+        kb.type(text[i:i + TYPE_CHUNK])
 
 
 def wait_for_window(app_windows: Callable[[], dict[int, str]], before: dict[int, str], seconds: float) -> bool:

@@ -30,6 +30,7 @@ def _cleanup(args) -> int:
 
     from jarvis_pytest.infra import engines
     from jarvis_pytest.plugin.options import REPO_ROOT
+    from jarvis_pytest.results import run_lock
     from jarvis_pytest.results.run_state import read_json, resource_id
 
     hosts = list(engines.configured(args.docker_host, REPO_ROOT))
@@ -40,11 +41,41 @@ def _cleanup(args) -> int:
             run = resource_id(folder)
             recorded = (read_json(folder / "run.json") or {}).get("engines") or []
             hosts += [h for h in engines.check_urls(recorded, f"{folder / 'run.json'}: engines") if h not in hosts]
-    counts = engines.cleanup_everywhere(tuple(hosts), run_id=run, everything=args.all)
-    what = f"run {args.run}" if args.run else "every run" if args.all else "orphans (owner process gone)"
+    if args.list:
+        _print_kept(hosts, removed=False)
+        return 0
+    kept_before = set(run_lock.kept_runs())
+    counts = engines.cleanup_everywhere(tuple(hosts), run_id=run, everything=args.all, kept=args.kept)
+    for gone in (kept_before if args.kept or args.all else [run] if run else []):
+        run_lock.forget(gone)  # removed on every engine: no longer kept (a live run's record stays)
+    what = (f"run {args.run}" if args.run else "every run" if args.all else
+            "devices kept with --keep-devices by ended runs" if args.kept else "orphans: runs whose processes are gone")
     where = f" on {len(hosts)} engines" if len(hosts) > 1 else ""
     print(", ".join(f"{v} {k}" for k, v in counts.items()) + f" removed ({what}){where}")
+    if not (args.run or args.all or args.kept):
+        run_lock.prune()  # the lock files killed runs left
+        _print_kept(hosts, removed=True)
     return 0
+
+
+def _print_kept(hosts: list[str], removed: bool) -> None:
+    """The devices ended runs kept with --keep-devices (left alone by every sweep), and how to remove them."""
+    from jarvis_pytest.infra.cleanup import kept_devices
+
+    lines = []
+    for host in hosts or [None]:
+        for run, kept in kept_devices(host).items():
+            if kept["containers"] or kept["networks"]:
+                where = f" on {host}" if host else ""
+                lines.append(f"  {run}{where} ({kept['run_dir'] or 'folder unknown'}; ended {kept['ended'] or '?'}): "
+                             f"{', '.join(kept['containers'] + kept['networks'])}")
+    if not lines:
+        if not removed:
+            print("no devices kept with --keep-devices")
+        return
+    print(("kept with --keep-devices, not removed:" if removed else "kept with --keep-devices:"))
+    print("\n".join(lines))
+    print("remove them with `jarvis cleanup --kept` (all of them) or `jarvis cleanup --run RUN` (one run)")
 
 
 def _bench_devices(args) -> int:
@@ -61,11 +92,18 @@ def _bench_throughput(args) -> int:
 
 def register(sub) -> None:
     c = sub.add_parser("cleanup", help="remove containers, networks and volumes a crashed run left behind",
-                       description="Without options: remove what runs whose process is gone left behind (runs "
-                                   "still going are safe). --run: everything of one run. --all: everything.")
-    c.add_argument("--run", help="a run, live or not: its folder (its name under reports/, or a path) or the id "
+                       description="Without options: remove what runs whose processes are gone left behind (runs "
+                                   "still going are safe; devices kept with --keep-devices are listed, not removed)."
+                                   " --kept: remove the devices ended runs kept. --list: list those, remove nothing."
+                                   " --run: everything of one run. --all: everything.")
+    one = c.add_mutually_exclusive_group()
+    one.add_argument("--run", help="a run, live or not: its folder (its name under reports/, or a path) or the id "
                    "its devices carry (label org.jarvis.run)")
-    c.add_argument("--all", action="store_true", help="everything any jarvis run made, live runs included")
+    one.add_argument("--all", action="store_true", help="everything any jarvis run made, live runs included")
+    one.add_argument("--kept", action="store_true", help="the devices runs started with --keep-devices kept, once "
+                   "those runs ended (this host's runs)")
+    one.add_argument("--list", action="store_true", help="list the devices ended runs kept with --keep-devices; "
+                   "remove nothing")
     c.add_argument("--docker-host", action="append", default=None, metavar="URL",
                    help="an engine to clean (repeatable; default: [tool.jarvis] docker_hosts, else the local one; "
                    "with --run also the engines the run recorded)")

@@ -15,9 +15,9 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, Literal
 
-from jarvis_pytest.errors import InfrastructureError
+from jarvis_pytest.errors import ConfigError, InfrastructureError
 from jarvis_pytest.infra import egress
 
 if TYPE_CHECKING:
@@ -29,14 +29,82 @@ LABEL_ROLE = "org.jarvis.role"
 LABEL_PLATFORM = "org.jarvis.platform"
 LABEL_HOST = "org.jarvis.host"
 LABEL_PID = "org.jarvis.pid"
+LABEL_KEEP = "org.jarvis.keep"  # "1": made by a run started with --keep-devices; no sweep removes it
 
 READY_SLICE = 1.0  # seconds one readiness check may take before we look at the container again
+
+# Every container gets a process limit (cgroup `pids.max`, threads included): a device's user has passwordless
+# sudo, and without one a fork bomb in one task fills the host's process table (here `kernel.pid_max` is 32768)
+# for every other task and for the host. Measured peaks of `pids.current` (sampled once a second over 696 Ubuntu
+# and 351 Wine devices of three oracle benchmark runs, the project's tests and oracle runs of Chromium, GIMP,
+# LibreOffice, VLC and WordPad tasks, and 20 times a second over five of them): an Ubuntu device 219 (Chromium
+# printing a page), a Wine device 70, the transfer drive 22, a port holder 6 (and of memory, for the backends'
+# limits: 583 MB, 242 MB, 36 MB, 4 MB). PIDS_LIMIT is over four times the largest; $JARVIS_DEVICE_PIDS overrides
+# it for devices and drives (a whole number, or `none` for no limit); a backend may set `pids_limit` in its
+# `container_options`.
+PIDS_LIMIT = 1024
+PIDS_ENV = "JARVIS_DEVICE_PIDS"
+HOLDER_PIDS_LIMIT = 64  # `sleep`, and what is run in it with docker exec (the `ip route` that cuts its route)
+
+
+def pids_limit(environ: dict[str, str] | None = None) -> int | None:
+    """The process limit of a device or drive container: $JARVIS_DEVICE_PIDS (None for `none`), else PIDS_LIMIT.
+    A bad value is a ConfigError naming the variable."""
+    raw = (os.environ if environ is None else environ).get(PIDS_ENV, "").strip()
+    if not raw:
+        return PIDS_LIMIT
+    if raw.lower() == "none":
+        return None
+    if raw.isdigit() and int(raw) > 0:
+        return int(raw)
+    raise ConfigError(f"{raw!r} is not a process limit", field=PIDS_ENV,
+                      fix=f"give a whole number of processes (default {PIDS_LIMIT}), or `none` for no limit")
+
+
+_ENGINE_CPUS: dict[str, int] = {}  # engine URL → its CPUs, asked once
+
+
+def cpus_of(cores: int) -> float:
+    """The default CPU limit of a device on an engine with `cores`: all but one where it has more than two, so
+    that a device that spins every core leaves one to the harness, the engine and the other tasks' devices; all of
+    them on two or fewer, where one core cost 6 oracle tasks in a row 20-40 % of their time (64 and 74 s against
+    54 and 45 s without, on 2 busy cores). Between devices the CPU weights (`BootPriority`) share the cores
+    fairly either way."""
+    return float(cores - 1 if cores > 2 else max(1, cores))
+
+
+def device_cpus(docker: Any = None) -> float:
+    """The default CPU limit of a device container (`--device-cpus` and a backend's own limit come first):
+    `cpus_of` the cores of `docker`'s engine (this machine's without one). Docker refuses a limit above the
+    engine's own count, which this process may not share."""
+    cores = os.cpu_count() or 1
+    if docker is not None:
+        url = str(getattr(getattr(docker, "api", None), "base_url", ""))
+        if url not in _ENGINE_CPUS:
+            try:
+                _ENGINE_CPUS[url] = int(docker.info()["NCPU"])
+            except Exception:  # the limit is a safeguard: this machine's count will do
+                _ENGINE_CPUS[url] = cores
+        cores = _ENGINE_CPUS[url]
+    return cpus_of(cores)
+
+
+_KEEP = {"devices": False}
+
+
+def keep_devices(keep: bool) -> None:
+    """Whether the resources this process makes from now on are kept after its run (--keep-devices): they carry
+    `LABEL_KEEP`, so every sweep leaves them, whichever run-lock folder it reads, until `jarvis cleanup --kept`."""
+    _KEEP["devices"] = keep
 
 
 def labels(run_id: str, worker: str, role: str, platform: str = "") -> dict[str, str]:
     """The labels of one resource of this process."""
-    return {LABEL_RUN: run_id, LABEL_WORKER: worker, LABEL_ROLE: role, LABEL_PLATFORM: platform,
-            LABEL_HOST: socket.gethostname(), LABEL_PID: str(os.getpid())}
+    out = {LABEL_RUN: run_id, LABEL_WORKER: worker, LABEL_ROLE: role, LABEL_PLATFORM: platform,
+           LABEL_HOST: socket.gethostname(), LABEL_PID: str(os.getpid())}
+    if _KEEP["devices"]:
+        out[LABEL_KEEP] = "1"
+    return out
 
 
 def docker_name(*parts: str) -> str:
@@ -118,11 +186,17 @@ def _set_shares(container: Any, shares: int) -> None:
 
 def start_container(docker: Any, image: str, name: str, *, network: Any, labels: dict[str, str], port: int | None,
                     aliases: tuple[str, ...] = (), memory: str | None = None, cpus: float | None = None,
-                    options: dict[str, Any] | None = None, priority: BootPriority | None = None) -> Any:
+                    options: dict[str, Any] | None = None, priority: BootPriority | None = None,
+                    pids: int | None | Literal["default"] = "default") -> Any:
     """Create and start a detached container on `network` with `port` published on a free 127.0.0.1 port
     (`network` None: no network or port of its own; `options` then say whose namespace it joins), at the CPU
-    weight of `priority` (default: Docker's)."""
+    weight of `priority` (default: Docker's), with at most `pids` processes (default: `pids_limit()`) and, with
+    `memory`, no swap beyond it (a runaway is stopped by the kernel's OOM killer in its container instead of
+    swapping the machine to a halt). `options` override all of these."""
     kwargs: dict[str, Any] = dict(detach=True, name=name, labels=labels)
+    pids = pids_limit() if pids == "default" else pids
+    if pids is not None:
+        kwargs["pids_limit"] = pids
     shares = priority.shares() if priority is not None else None
     if shares is not None:
         kwargs["cpu_shares"] = shares
@@ -132,7 +206,7 @@ def start_container(docker: Any, image: str, name: str, *, network: Any, labels:
             networking_config={network.name: docker.api.create_endpoint_config(aliases=list(aliases) or None)},
             ports={f"{port}/tcp": ("127.0.0.1", None)})
     if memory:
-        kwargs["mem_limit"] = memory
+        kwargs["mem_limit"] = kwargs["memswap_limit"] = memory
     if cpus:
         kwargs["nano_cpus"] = int(cpus * 1e9)
     kwargs.update(options or {})
@@ -295,7 +369,7 @@ def start_holder(backend: "Backend", request: "BootRequest") -> PortHolder:
     the control port published and (unless egress is allowed) no default route."""
     c = start_container(request.docker, backend.image_ref, f"{request.name}-net", network=request.network,
                         labels={**request.labels, LABEL_ROLE: HOLDER_ROLE}, port=backend.port,
-                        memory=HOLDER_MEMORY, options={"entrypoint": ["sleep", "infinity"]})
+                        memory=HOLDER_MEMORY, pids=HOLDER_PIDS_LIMIT, options={"entrypoint": ["sleep", "infinity"]})
     request.started.append(c)
     if not request.egress:
         egress.cut_default_route(c)
@@ -312,7 +386,7 @@ class BootRequest:
     network: Any                     # the task's Docker network
     labels: dict[str, str]
     memory: str | None               # the option's value, else the backend's default
-    cpus: float | None
+    cpus: float | None               # the option's value, else the backend's; None: `device_cpus()`
     ready_timeout: float
     egress: bool = False             # --allow-egress: keep the device's default route
     volumes: dict[str, dict[str, str]] = field(default_factory=dict)  # docker-py `volumes` (e.g. the drive)
@@ -343,7 +417,8 @@ def boot_container(backend: "Backend", request: BootRequest) -> BootedDevice:
         options["network_mode"] = holder.network_mode
     c = start_container(request.docker, backend.image_ref, request.name,
                         network=None if holder else request.network, labels=request.labels,
-                        port=None if holder else backend.port, memory=request.memory, cpus=request.cpus,
+                        port=None if holder else backend.port, memory=request.memory,
+                        cpus=request.cpus or device_cpus(request.docker),
                         options=options, priority=request.priority)
     request.started.append(c)
     booted = BootedDevice(container=c, url="", backend=backend)

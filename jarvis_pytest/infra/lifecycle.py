@@ -96,8 +96,8 @@ class TaskEnvironment:
         for role, c in sorted(self.containers.items()):
             lines.append(f"  {role}: {self.urls.get(role, '')}  (docker exec -it {c.name} bash)")
         names = [c.name for c in self.containers.values()] + [h.container.name for h in self.holders.values()]
-        lines.append(f"  remove with: jarvis cleanup --run {self.run_id}  (or docker rm -f {' '.join(names)} && "
-                     f"docker network rm {self.network.name})")
+        lines.append(f"  kept until: jarvis cleanup --run {self.run_id}  (or `jarvis cleanup --kept` once the run "
+                     f"ended, or docker rm -f {' '.join(names)} && docker network rm {self.network.name})")
         return "\n".join(lines)
 
     def close(self) -> None:

@@ -7,10 +7,13 @@ Usage::
     result.text    # the assistant's answer ("" when it sent none)
     result.usage   # {"prompt_tokens": ..., "completion_tokens": ..., "total_tokens": ...}
 
-What it does for you: images travel as base64 ``data:`` URLs; every request has a timeout; 429, 5xx, timeouts and
-connection errors are retried with exponential backoff (``Retry-After`` is honoured); at most ``max_concurrency``
-requests per endpoint are in flight across all threads of the process. When the endpoint still fails after the
-retries, or answers something that is not a chat completion, it raises
+What it does for you: images travel as base64 ``data:`` URLs; every attempt has a wall-clock deadline (``timeout``
+seconds for the whole attempt, however slowly the server sends, and never past the deadline of the step that
+made the call, see :mod:`jarvis_pytest.llm.deadline`); 429, 5xx, timeouts and connection errors are retried with
+exponential backoff (``Retry-After`` is honoured) while the deadline allows; at most ``max_concurrency`` requests
+per endpoint are in flight across all threads of the process, and a request that runs out of time gives its slot
+back as it ends, at its deadline. When the endpoint still fails after the retries, or answers something that is
+not a chat completion, it raises
 :class:`jarvis_pytest.errors.InfrastructureError` (the harness counts that as an infrastructure error, not as an
 agent failure). The API key is sent as ``Authorization: Bearer`` and appears in no message, repr or log.
 """
@@ -18,21 +21,25 @@ agent failure). The API key is sent as ``Authorization: Bearer`` and appears in 
 from __future__ import annotations
 
 import base64
+import contextlib
 import random
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Iterator
 
 import httpx
 
 from jarvis_pytest.errors import ConfigError, InfrastructureError
 from jarvis_pytest.http_client import http_client
-from jarvis_pytest.llm.deadline import remaining
+from jarvis_pytest.llm.deadline import deadline_at, remaining
+from jarvis_pytest.llm.transport import install as transport_install, pause, stopping
 
 #: HTTP statuses worth another try: rate limits, overload, gateway trouble.
 RETRY_STATUSES = frozenset({408, 425, 429, 500, 502, 503, 504, 520, 521, 522, 524, 529})
 USAGE_KEYS = ("prompt_tokens", "completion_tokens", "total_tokens")
+PROBE_SECONDS = 30.0  # the start-up check's budget (or the endpoint's timeout, when shorter)
+MAX_ANSWER_BYTES = 32 * 1024 * 1024  # an answer longer than this is the endpoint's fault (an endless body)
 
 _SEMAPHORES: dict[tuple[str, int], threading.BoundedSemaphore] = {}
 _SEMAPHORES_LOCK = threading.Lock()
@@ -100,7 +107,8 @@ class ChatClient:
     """A chat-completions client for one endpoint and model. Thread-safe; reuse one per endpoint.
 
     ``base_url`` is the API root that ends in ``/v1`` (or DashScope's ``.../compatible-mode/v1``); requests go to
-    ``{base_url}/chat/completions``. ``timeout`` is per attempt, in seconds. ``max_retries`` counts the extra
+    ``{base_url}/chat/completions``. ``timeout`` is the wall-clock budget of one attempt, in seconds (waiting for
+    a free slot, connecting, sending and receiving the whole answer). ``max_retries`` counts the extra
     attempts after the first. ``backoff`` is the first wait (doubled each retry, with jitter, capped at
     ``max_backoff``). ``params`` are default request parameters (e.g. ``temperature``) merged under each call's.
     """
@@ -122,7 +130,8 @@ class ChatClient:
         headers = {"Content-Type": "application/json"}
         if self._api_key:
             headers["Authorization"] = f"Bearer {self._api_key}"
-        self._http = http_client(headers=headers, timeout=httpx.Timeout(self.timeout), transport=transport)
+        self._http = transport_install(http_client(headers=headers, timeout=httpx.Timeout(self.timeout),
+                                                   transport=transport))
         self._semaphore = endpoint_semaphore(self.base_url, self.max_concurrency)
 
     def __repr__(self) -> str:
@@ -143,20 +152,24 @@ class ChatClient:
         self.close()
 
     def chat(self, messages: list[dict[str, Any]], **params: Any) -> ChatResult:
-        """Send one chat completion request; returns the first choice. Raises InfrastructureError after retries."""
+        """Send one chat completion request; returns the first choice. Raises InfrastructureError after retries,
+        when the deadline of the calling thread passes, or when the process is stopping."""
         body = {"model": self.model, "messages": messages, **self.params, **params}
         url = f"{self.base_url}/chat/completions"
         started = time.monotonic()
         last = ""
         for attempt in range(1, self.max_retries + 2):
             left = remaining()
+            if stopping():
+                raise InfrastructureError(f"{url} (model {self.model}): the run is stopping; the call was cancelled")
             if left is not None and left <= 0:
                 last = last or "no attempt made"
                 raise InfrastructureError(f"{url} (model {self.model}): the step's deadline passed after "
                                           f"{attempt - 1} attempt(s); last error: {last}")
+            budget = self.timeout if left is None else min(self.timeout, left)
             try:
-                with self._semaphore:
-                    raw = self._once(url, body, self.timeout if left is None else min(self.timeout, left))
+                with deadline_at(time.monotonic() + budget), self._slot(budget):
+                    raw = self._once(url, body, budget)
                 return self._result(raw, attempt, time.monotonic() - started)
             except _Retry as exc:
                 last = exc.reason
@@ -166,23 +179,47 @@ class ChatClient:
                 left = remaining()
                 if left is not None and wait >= left:
                     break
-                time.sleep(wait)
+                if not pause(wait):
+                    raise InfrastructureError(f"{url} (model {self.model}): the run is stopping; the call was "
+                                              f"cancelled after {attempt} attempt(s)") from None
         raise InfrastructureError(f"{url} (model {self.model}) failed after {attempt} attempt(s); "
                                   f"last error: {last}")
 
-    def probe(self, timeout: float = 30.0) -> None:
+    @contextlib.contextmanager
+    def _slot(self, budget: float) -> Iterator[None]:
+        """One of the endpoint's `max_concurrency` slots, waited for at most `budget` seconds."""
+        if not self._semaphore.acquire(timeout=max(0.0, budget)):
+            raise _Retry(f"no free slot within {budget:g} s ({self.max_concurrency} calls to this endpoint in "
+                         "flight)")
+        try:
+            yield
+        finally:
+            self._semaphore.release()
+
+    def probe(self, timeout: float | None = None) -> None:
         """One minimal real request (a one-token completion) proving the endpoint, the model name and the key;
-        a ConfigError that says which is wrong otherwise. Run once at start-up, before any device boots."""
+        a ConfigError that says which is wrong otherwise. Run once at start-up, before any device boots. It
+        ends within `timeout` seconds of wall-clock time (default: PROBE_SECONDS, or the endpoint's timeout when
+        shorter), however slowly the server answers."""
+        timeout = min(PROBE_SECONDS, self.timeout) if timeout is None else float(timeout)
         url = f"{self.base_url}/chat/completions"
         body = {"model": self.model, "max_tokens": 1, "temperature": 0,
                 "messages": [{"role": "user", "content": "Reply with OK."}]}
         try:
-            resp = self._http.post(url, json=body, timeout=timeout)
+            with deadline_at(time.monotonic() + timeout):
+                resp = self._post(url, body, timeout)
+        except InfrastructureError as exc:
+            raise ConfigError(f"{exc} (to a one-token request)", field="base_url",
+                              fix="give the API root of an OpenAI-compatible server (ending in /v1)") from None
         except httpx.TimeoutException:
-            raise ConfigError(f"{url} accepted the connection but sent no answer within {timeout:g} s",
-                              field="base_url", fix="check that the model server is up and not stuck; or raise "
-                              "the endpoint timeout") from None
+            raise ConfigError(f"{url} sent no complete answer to a one-token request within {timeout:g} s",
+                              field="base_url", fix="check that the model server is up, not stuck and not "
+                              f"overloaded (the start-up check allows {PROBE_SECONDS:g} s, or the endpoint's "
+                              "timeout when shorter)") from None
         except httpx.HTTPError as exc:
+            if stopping():
+                raise ConfigError(f"{url}: the start-up check was cancelled (the run is stopping)",
+                                  field="base_url") from None
             raise ConfigError(f"{url} is unreachable ({exc.__class__.__name__})", field="base_url",
                               fix="start the server or correct the base URL (--planner-base-url / "
                               "--grounder-base-url or JARVIS_*_BASE_URL)") from None
@@ -206,12 +243,25 @@ class ChatClient:
         raise ConfigError(f"{url} answered HTTP {resp.status_code} to a minimal request: {_snippet(resp)}",
                           field="base_url", fix="check the base URL, the model name and the API key")
 
+    def _post(self, url: str, body: dict[str, Any], timeout: float) -> httpx.Response:
+        """POST `body` and read the whole answer (at most MAX_ANSWER_BYTES; an InfrastructureError beyond)."""
+        with self._http.stream("POST", url, json=body, timeout=timeout) as resp:
+            data = bytearray()
+            for chunk in resp.iter_bytes():
+                data += chunk
+                if len(data) > MAX_ANSWER_BYTES:
+                    raise InfrastructureError(f"{url} (model {self.model}) sent an answer longer than "
+                                              f"{MAX_ANSWER_BYTES // 2**20} MiB; the rest was not read")
+        headers = [(k, v) for k, v in resp.headers.raw
+                   if k.lower() not in (b"content-encoding", b"content-length", b"transfer-encoding")]
+        return httpx.Response(resp.status_code, headers=headers, content=bytes(data), request=resp.request)
+
     def _once(self, url: str, body: dict[str, Any], timeout: float | None = None) -> dict[str, Any]:
         timeout = self.timeout if timeout is None else timeout
         try:
-            resp = self._http.post(url, json=body, timeout=timeout)
+            resp = self._post(url, body, timeout)
         except httpx.TimeoutException as exc:
-            raise _Retry(f"timeout after {timeout:g} s ({type(exc).__name__})") from None
+            raise _Retry(f"no complete answer within {timeout:.3g} s ({type(exc).__name__})") from None
         except httpx.TransportError as exc:
             raise _Retry(f"connection error: {type(exc).__name__}: {exc}") from None
         if resp.status_code in RETRY_STATUSES:

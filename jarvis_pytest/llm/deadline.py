@@ -1,7 +1,9 @@
-"""The deadline of the current agent decision, set by the step loop for the thread that runs `agent.act`.
+"""The wall-clock deadline of the current thread's model calls.
 
-Model clients read it (`remaining()`) so that no request, retry or back-off outlives the step: each attempt's
-timeout is cut to the time left, and no retry starts after the deadline. Agents need not pass it along.
+The step loop sets one for the thread that runs `agent.act`; the model client sets one per attempt (its
+`timeout`) and for the start-up check. Deadlines nest: an inner one never ends later than the one around it.
+The network layer (`jarvis_pytest.llm.transport`) reads `remaining()` before every connect, write and read, so
+no request, retry or back-off outlives it, however slowly the server sends. Agents need not pass it along.
 """
 
 from __future__ import annotations
@@ -16,9 +18,10 @@ _LOCAL = threading.local()
 
 @contextlib.contextmanager
 def deadline_at(when: float | None) -> Iterator[None]:
-    """Within the block, this thread's model calls end by `when` (a `time.monotonic()` value; None: no deadline)."""
+    """Within the block, this thread's model calls end by `when` (a `time.monotonic()` value), or by the deadline
+    around the block if that is earlier (None: only the one around it, if any)."""
     before = getattr(_LOCAL, "when", None)
-    _LOCAL.when = when
+    _LOCAL.when = when if before is None else before if when is None else min(when, before)
     try:
         yield
     finally:

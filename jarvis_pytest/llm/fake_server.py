@@ -17,7 +17,12 @@ responder. A request nothing answers gets HTTP 400 naming the model (a test bug,
 Endpoints: ``POST /v1/chat/completions``, ``GET /v1/models``. With ``api_key`` set, requests without the matching
 ``Authorization: Bearer`` get 401. A one-token request (``max_tokens: 1``, the harness's start-up probe) is
 answered "OK" for a model in ``models`` and with 404 "model does not exist" for any other, as vLLM does, without
-touching the scripted answers.
+touching the scripted answers (unless ``probe_reply`` is set: then every probe gets that reply).
+
+A slow server: ``stall(s)`` sends nothing for `s` seconds; ``dribble(interval)`` sends its whole answer, status
+line and headers included, one byte every `interval` seconds, so that no single read of the client ever waits
+long. ``dribbling`` counts the answers being dribbled now and ``hangups`` those whose client closed the
+connection before the end (seen within one interval of the close).
 """
 
 from __future__ import annotations
@@ -25,6 +30,9 @@ from __future__ import annotations
 import base64
 import io
 import json
+import select
+import socket
+import sys
 import threading
 from collections import deque
 from dataclasses import dataclass, field
@@ -45,6 +53,7 @@ class Reply:
     usage: dict[str, int] | None = None
     reasoning: str | None = None
     body: Any = None  # a raw body (dict or str) sent instead of a chat completion
+    dribble: float = 0.0  # > 0: the whole answer is sent one byte per `dribble` seconds
 
 
 def fail(status: int = 500, *, retry_after: float | None = None, message: str = "injected failure") -> Reply:
@@ -56,6 +65,12 @@ def fail(status: int = 500, *, retry_after: float | None = None, message: str = 
 def stall(seconds: float, text: str = "") -> Reply:
     """A reply that arrives only after `seconds` (longer than the client's timeout: a timeout)."""
     return Reply(text=text, delay=seconds)
+
+
+def dribble(interval: float = 1.0, text: str = "OK") -> Reply:
+    """A reply sent one byte every `interval` seconds, status line and headers included (a server that is
+    alive but far too slow: no read of the client waits more than `interval`)."""
+    return Reply(text=text, dribble=interval)
 
 
 @dataclass
@@ -129,6 +144,9 @@ class FakeChatServer:
         self.record = record  # False: `requests` stays empty (a long benchmark would hold every screenshot sent)
         self.requests: list[RecordedRequest] = []
         self.received = 0  # requests received, recorded or not
+        self.probe_reply: Reply | None = None  # set: the start-up probes get this instead of "OK"
+        self.dribbling = 0  # answers being dribbled now
+        self.hangups = 0  # dribbled answers whose client closed the connection before the end
         self._default = responder
         self._responders: dict[str | None, Responder] = {}
         self._queues: dict[str | None, deque[Reply | str]] = {}
@@ -232,6 +250,11 @@ class _Server(ThreadingHTTPServer):
         super().__init__(address, handler)
         self.fake = fake
 
+    def handle_error(self, request, client_address) -> None:
+        if isinstance(sys.exc_info()[1], (ConnectionResetError, BrokenPipeError)):
+            return  # a client that gave up (a provoked timeout or size limit): not a server fault
+        super().handle_error(request, client_address)
+
 
 class _Handler(BaseHTTPRequestHandler):
     protocol_version = "HTTP/1.1"
@@ -287,15 +310,56 @@ class _Handler(BaseHTTPRequestHandler):
             if body.get("model") not in fake.models:
                 return self._send(404, {"error": {"message": f"The model `{body.get('model')}` does not exist.",
                                                   "code": 404}})
-            return self._send(200, fake._completion(req, Reply(text="OK")))
-        try:
-            reply = fake._choose(req)
-        except Exception as exc:  # a responder's bug: visible in the client's error
-            return self._send(400, {"error": {"message": f"fake server responder failed: {exc!r}"}})
+            reply = fake.probe_reply or Reply(text="OK")
+        else:
+            try:
+                reply = fake._choose(req)
+            except Exception as exc:  # a responder's bug: visible in the client's error
+                return self._send(400, {"error": {"message": f"fake server responder failed: {exc!r}"}})
         if isinstance(reply, str):
             reply = Reply(text=reply)
         if reply.delay and fake._stop.wait(reply.delay):
             return
-        if reply.body is not None:
-            return self._send(reply.status, reply.body, reply.headers)
-        self._send(reply.status, fake._completion(req, reply), reply.headers)
+        body_out = reply.body if reply.body is not None else fake._completion(req, reply)
+        if reply.dribble > 0:
+            return self._dribble(reply.status, body_out, reply.headers, reply.dribble)
+        self._send(reply.status, body_out, reply.headers)
+
+    def _dribble(self, status: int, body: Any, headers: dict[str, str], interval: float) -> None:
+        """Send the whole answer one byte per `interval` seconds; stop when the client hangs up."""
+        fake = self.server.fake
+        data = (body if isinstance(body, str) else json.dumps(body)).encode()
+        head = [f"HTTP/1.1 {status} {self.responses.get(status, ('',))[0]}", "Content-Type: application/json",
+                f"Content-Length: {len(data)}", *(f"{k}: {v}" for k, v in headers.items())]
+        payload = ("\r\n".join(head) + "\r\n\r\n").encode() + data
+        self.close_connection = True
+        with fake._lock:
+            fake.dribbling += 1
+        try:
+            for i in range(len(payload)):
+                try:
+                    self.connection.sendall(payload[i:i + 1])
+                except OSError:
+                    return self._hung_up()
+                if i + 1 < len(payload) and self._gone_within(interval):
+                    return self._hung_up() if not fake._stop.is_set() else None
+        finally:
+            with fake._lock:
+                fake.dribbling -= 1
+
+    def _gone_within(self, seconds: float) -> bool:
+        """Wait up to `seconds`; True as soon as the client closed the connection (or the server stops)."""
+        fake = self.server.fake
+        readable, _, _ = select.select([self.connection], [], [], seconds)
+        if fake._stop.is_set():
+            return True
+        if not readable:
+            return False
+        try:
+            return self.connection.recv(1, socket.MSG_PEEK) == b""
+        except OSError:
+            return True
+
+    def _hung_up(self) -> None:
+        with self.server.fake._lock:
+            self.server.fake.hangups += 1

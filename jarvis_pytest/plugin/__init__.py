@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import pytest
 
+from jarvis_pytest.plugin import exit_status
 from jarvis_pytest.plugin import session as _session
 from jarvis_pytest.plugin.options import addoption
 from jarvis_pytest.plugin.rootdir import redetermine
@@ -22,6 +23,8 @@ def pytest_load_initial_conftests(early_config: pytest.Config, parser: pytest.Pa
 @pytest.hookimpl(tryfirst=True)
 def pytest_configure(config: pytest.Config) -> None:
     _session.configure(config)
+    session = _session.get(config)
+    exit_status.register(config, session.options, lambda: session.agent)
 
 
 @pytest.fixture

@@ -20,7 +20,10 @@ def make_environments(options: JarvisOptions, *, run_id: str, worker: str):
     from jarvis_pytest.infra.networks import KEEP_PER_WORKER
     from jarvis_pytest.infra.pool import Pool
 
+    from jarvis_pytest.infra.containers import keep_devices
+
     configure_backends(options)
+    keep_devices(options.keep_devices)
     lifecycle = Lifecycle(run_id, worker, Limits(memory=options.device_memory, cpus=options.device_cpus),
                           transfer=options.transfer, backends=options.backends, egress=options.allow_egress,
                           docker_host=for_worker(options.docker_hosts, worker), keep_networks=KEEP_PER_WORKER)

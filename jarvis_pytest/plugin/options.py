@@ -13,6 +13,7 @@ import pytest
 
 from jarvis_pytest.errors import ConfigError
 from jarvis_pytest.infra import engines
+from jarvis_pytest.infra.containers import PIDS_LIMIT, pids_limit
 from jarvis_pytest.infra.pool import PREWARM_RESERVE_MB
 from jarvis_pytest.plugin.loop import LoopLimits
 
@@ -41,7 +42,9 @@ def addoption(parser: pytest.Parser) -> None:
                 "same agent configuration are not run again; errors and unfinished tasks are")
     g.addoption("--device-memory", default=None, help="memory limit per device container, e.g. 4g or 1536m "
                 "(default: the platform's own, 4g for Ubuntu)")
-    g.addoption("--device-cpus", default=None, help="CPU limit per device container, e.g. 1.5 (default none)")
+    g.addoption("--device-cpus", default=None, help="CPU limit per device container, e.g. 1.5 (default: the "
+                "backend's own, else all cores but one on machines with more than two); the process limit is "
+                f"$JARVIS_DEVICE_PIDS (default {PIDS_LIMIT}, `none`: no limit)")
     g.addoption("--windows-backend", default="auto", help="the Windows device: kvm (alias real: a Windows VM, "
                 "needs /dev/kvm and a prepared disk), wine (the offline stand-in) or auto (kvm where prepared, "
                 "else wine); results record which ran")
@@ -165,6 +168,7 @@ def read_options(config: pytest.Config) -> JarvisOptions:
         raise _bad("--device-memory", memory, "give a size such as 4g, 1536m or 2147483648")
     reserve = float(_number(config, "--prewarm-reserve-mb", float, minimum=0,
                             fix="give the MB to keep free for running tasks, e.g. 2048 (0: no reserve)"))
+    pids_limit()  # $JARVIS_DEVICE_PIDS: a bad value is one error now, not one per task
     cpus = None
     if config.getoption("--device-cpus") is not None:
         cpus = float(_number(config, "--device-cpus", float, minimum=0.01,

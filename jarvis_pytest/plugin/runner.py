@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
+from jarvis_pytest.agents.oracle import brief as brief_oracle
 from jarvis_pytest.agents.protocol import Agent, TaskContext
 from jarvis_pytest.devices.actions import PLATFORMS
 from jarvis_pytest.infra.transfer_server import (TRANSFER_ALIAS, TRANSFER_FOLDER, TRANSFER_PASSWORD, TRANSFER_PORT,
@@ -17,10 +18,11 @@ from jarvis_pytest.errors import ConfigError, InfrastructureError, retry_device_
 from jarvis_pytest.plugin.evaluation import DriveWatch, capture_baselines, evaluate_subtasks
 from jarvis_pytest.plugin import idle
 from jarvis_pytest.plugin.idle import idle_observation
-from jarvis_pytest.plugin.loop import LoopLimits, LoopOutcome, run_loop
+from jarvis_pytest.plugin.blame import AGENT_ERROR
+from jarvis_pytest.plugin.loop import LoopLimits, LoopOutcome, begin, run_loop
 from jarvis_pytest.plugin.setup_steps import run_setup
 from jarvis_pytest.report.failure_modes import classify
-from jarvis_pytest.results.model import TaskResult
+from jarvis_pytest.results.model import StepRecord, TaskResult
 from jarvis_pytest.results.writer import TaskRecorder
 from jarvis_pytest.tasks.model import Task
 from jarvis_pytest.tasks.transfer import is_transfer
@@ -112,12 +114,16 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
         transfer = {"url": f"http://{TRANSFER_ALIAS}:{TRANSFER_PORT}", "user": TRANSFER_USER,
                     "password": TRANSFER_PASSWORD, "folder": TRANSFER_FOLDER,
                     "flavour": getattr(env.transfer, "flavour", "copyparty")}
-        ctx.agent.reset(TaskContext(task_id=task.id, instruction=task.instruction, platforms=platforms,
-                                    transfer=transfer, subtasks=tuple(subtasks)))
-        if hasattr(ctx.agent, "attach_devices"):
-            ctx.agent.attach_devices(env.devices)
-        unused = {p: idle_observation(p) for p in PLATFORMS if p not in env.devices}
-        outcome = run_loop(ctx.agent, env.devices, unused, recorder, ctx.limits, progress)
+        failed_reset = begin(ctx.agent, TaskContext(task_id=task.id, instruction=task.instruction,
+                                                    platforms=platforms, transfer=transfer), ctx.limits)
+        brief_oracle(ctx.agent, subtasks, env.devices)  # the solution and devices: to the built-in oracle only
+        if failed_reset is None:
+            unused = {p: idle_observation(p) for p in PLATFORMS if p not in env.devices}
+            outcome = run_loop(ctx.agent, env.devices, unused, recorder, ctx.limits, progress)
+        else:  # the agent's own code failed before its first step: its failure, judged on the untouched devices
+            recorder.step(StepRecord(index=0, platform=None, action=None, error=failed_reset))
+            outcome = progress
+            outcome.steps, outcome.end_reason = 1, AGENT_ERROR
         for platform, device in sorted(env.devices.items()):
             recorder.screenshot(outcome.steps, platform, device.observe().screenshot_png)
         t_loop = time.monotonic()
@@ -163,9 +169,11 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
         if result.status in ("error", "running"):  # whatever ended the task, the steps taken and tokens spent stay
             result.steps, result.usage = progress.steps, dict(progress.usage)
             result.durations.setdefault("agent", progress.agent_seconds)
-        recorder.finish()
-        if env is not None:
-            if ctx.keep_devices and ctx.on_keep:
-                ctx.on_keep(env)
-            else:
-                env.close()
+        try:
+            recorder.finish()
+        finally:  # a result that cannot be written (a full disk) still gives the devices back
+            if env is not None:
+                if ctx.keep_devices and ctx.on_keep:
+                    ctx.on_keep(env)
+                else:
+                    env.close()

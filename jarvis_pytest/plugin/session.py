@@ -5,7 +5,9 @@ The controller (the only process without xdist, or the xdist controller) checks 
 model endpoints once, chooses the run directory, writes `run.json` (with a heartbeat) and, at the end, the
 summary of everything the run holds on disk. Workers run tasks and attach a compact result to
 `report.user_properties`. Whatever stops the session — the end, Ctrl-C, SIGTERM — it removes the run's devices
-and says in `run.json` and the summary how far it got; the next run removes what killed runs left.
+and says in `run.json` and the summary how far it got; the next run removes what killed runs left. The
+controller holds the run's folder against other runs from its first moment (`results/run_lock.py`) and checks
+that it can take the run's files (`results/storage.py`); a folder that stops taking them ends the run.
 """
 
 from __future__ import annotations
@@ -23,8 +25,9 @@ from jarvis_pytest.plugin import cases
 from jarvis_pytest.plugin.evaluation import failure_message, qc_message
 from jarvis_pytest.plugin.options import REPO_ROOT, JarvisOptions, new_run_id, read_options
 from jarvis_pytest.plugin.runner import RunContext, agent_key, run_task, task_platforms
-from jarvis_pytest.results import run_state
+from jarvis_pytest.results import run_state, storage
 from jarvis_pytest.results.model import TaskResult
+from jarvis_pytest.results.run_lock import RunLock
 from jarvis_pytest.plugin.availability import skip_reason
 from jarvis_pytest.results.writer import now_iso, read_result, task_dir, write_json_atomic
 from jarvis_pytest.tasks.model import Task
@@ -59,14 +62,25 @@ def _task_data_checked():
         raise pytest.UsageError(f"bad task data: {exc}") from None
 
 
+NO_AGENT = ("choose an agent with --agent NAME (e.g. --agent oracle to check the tasks, --agent holo2 with "
+            "--planner-base-url/--grounder-base-url for a model)")
+TASK_TESTS = ("test_atomic", "test_composed")  # the benchmark's test functions (tasks/test_*.py)
+
 def _sigterm_as_interrupt() -> None:
-    """SIGTERM stops the session like Ctrl-C (devices removed, results kept), unless someone else handles it."""
+    """SIGTERM stops the session like Ctrl-C (devices removed, results kept), unless someone else handles it.
+    On both, every model call in flight in any thread is cut first, so that no slow endpoint holds up the stop
+    (the start-up check included)."""
+    from jarvis_pytest.llm.transport import stop_all
+
     def handler(signum, frame):
+        stop_all()
         raise KeyboardInterrupt(f"signal {signum}")
 
     try:
         if signal.getsignal(signal.SIGTERM) in (signal.SIG_DFL, None):
             signal.signal(signal.SIGTERM, handler)
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            signal.signal(signal.SIGINT, handler)
     except ValueError:  # not the main thread
         pass
 
@@ -88,6 +102,9 @@ class JarvisSession:
         self.summary = None  # the controller's rollup, written at the end
         self.next_platforms: tuple[str, ...] | None = None  # this worker's next task's platforms
         self._params: dict[str, list[Any]] = {}
+        self.lock: RunLock | None = None  # the controller's hold on the results folder (`results/run_lock.py`)
+        self.storage_failure: str | None = None  # why the results folder stopped taking files, once it did
+        self._end_unwritten = False  # the end of the run could not be written (said once)
 
     # -- start-up (controller) ------------------------------------------------------------------------------
     def ensure_agent(self):
@@ -114,8 +131,29 @@ class JarvisSession:
         return [p.values[0] for kind in ("atomic", "composed") for p in self.params(kind)]
 
     def start(self) -> None:
-        """Everything that can be wrong is found now, once, before any device boots: the task data, the agent,
-        its model endpoints (one real request each), the drive image, a run directory to resume."""
+        """Everything that can be wrong is found now, once, before any device boots: the results folder (held
+        against other runs, writable, not full), the task data, the agent, its model endpoints (one real request
+        each), the drive image, a run directory to resume."""
+        self.take_results_folder()
+        try:
+            self._start()
+        except BaseException:
+            self.release_results_folder()
+            raise
+
+    def take_results_folder(self) -> None:
+        """Hold the run's folder against other runs (before anything is written into it), then check that it
+        can take the run's files: ConfigError naming the folder (and the live run's pid) if not."""
+        self.lock = RunLock(self.run_dir)
+        self.lock.acquire(keep_devices=self.options.keep_devices)
+        if self.options.resume is None or self.run_dir.is_dir():  # a missing run to resume: `_check_resume` says so
+            storage.check(self.run_dir, "--resume" if self.options.resume is not None else "--results-dir")
+
+    def release_results_folder(self) -> None:
+        if self.lock is not None:
+            self.lock.release()
+
+    def _start(self) -> None:
         agent = self.ensure_agent()
         found = self.all_cases()
         preflight = getattr(agent, "preflight", None)
@@ -142,6 +180,8 @@ class JarvisSession:
             self._check_resume(key, agent.config(), found)
         _check_engines(self.options.docker_hosts)
         _remove_orphans(self.options.docker_hosts)
+        if self.lock is not None and not self.lock.was_kept:  # this folder's earlier, dead sessions' leftovers
+            _remove_run_resources(run_state.resource_id(self.run_dir), self.options.docker_hosts)  # (none of ours yet)
         self.state = run_state.RunState(self.run_dir, redacted_argv(sys.argv[1:]), resumed=not self.new_run)
         self.state.start(agent=agent.config(), agent_key=key, egress=self.options.allow_egress,
                          options={"max_steps": self.options.limits.max_steps, "instances": self.options.instances},
@@ -151,18 +191,31 @@ class JarvisSession:
     def _check_resume(self, key: str, agent_config: dict[str, Any], found: list[cases.TaskCase]) -> None:
         run_dir = self.run_dir
         fix_new = "or start a new run (drop --resume)"
+        meta, bad = run_state.read_run_meta(run_dir)
+        if bad:
+            raise ConfigError(f"run.json {bad}", path=run_dir / "run.json", field="--resume",
+                              fix="restore it, or move it away (the run then resumes from its plan.json and "
+                                  "tasks/), " + fix_new)
+        bad = run_state.plan_problem(run_dir)
+        if bad:
+            raise ConfigError(f"plan.json {bad}", path=run_dir / "plan.json", field="--resume",
+                              fix="restore it, or move it away (the summary then counts only the tasks with a "
+                                  "result as planned), " + fix_new)
         if not run_state.is_run_dir(run_dir):
             raise ConfigError("not a run directory of jarvis-pytest (no run.json or plan.json)", path=run_dir,
                               field="--resume", fix="give a folder under reports/ written by an earlier run")
-        meta = run_state.read_json(run_dir / "run.json") or {}
+        meta = meta or {}
         if run_state.liveness(meta) == "running":
             raise ConfigError(f"this run is still going (pid {meta.get('pid')} on {meta.get('host')})", path=run_dir,
                               field="--resume", fix="wait for it to end, or stop it (Ctrl-C) first")
+        from jarvis_pytest.report.rollup import load_results
+
+        kept_results, unreadable = load_results(run_dir)
+        for problem in unreadable:  # each named once; its task has no result to keep, so it runs again
+            print(f"[jarvis] --resume: {problem}; that task runs again", file=sys.stderr, flush=True)
         stored_keys = {meta["agent_key"]} if meta.get("agent_key") else set()
         if not stored_keys:  # a run from before run.json kept the key: its results do
-            from jarvis_pytest.report.rollup import load_results
-
-            stored_keys = {r.agent_key for r in load_results(run_dir)[0] if r.agent_key}
+            stored_keys = {r.agent_key for r in kept_results if r.agent_key}
         if stored_keys and stored_keys != {key}:
             used = meta.get("agent") or "another configuration"
             raise ConfigError(f"the run was made with agent {used}, not {agent_config}", path=run_dir,
@@ -187,14 +240,16 @@ class JarvisSession:
             kind = getattr(metafunc.module, "JARVIS_TASKS", "atomic")
             metafunc.parametrize("jarvis_task", self.params(kind))
 
+    @pytest.hookimpl(trylast=True)  # after -m/-k deselected: it sees, orders and asks an agent for what is left
     def pytest_collection_modifyitems(self, session: pytest.Session, config: pytest.Config,
                                       items: list[pytest.Item]) -> None:
         jarvis_items = [i for i in items if _case_of(i) is not None]
         if not jarvis_items:
             return
-        if not self.options.agent:
-            raise pytest.UsageError("choose an agent with --agent NAME (e.g. --agent oracle to check the tasks, "
-                                    "--agent holo2 with --planner-base-url/--grounder-base-url for a model)")
+        if not self.options.agent and not config.option.collectonly:  # listing the tasks needs no agent
+            if not self.is_controller:  # an xdist worker: its controller stops the run (`_XdistHooks`)
+                return
+            raise pytest.UsageError(NO_AGENT)
         # Longest tasks first (more subtasks), ties by id: keeps xdist workers busy to the end, deterministic.
         order = {id(i): (-_case_of(i).size, i.nodeid) for i in jarvis_items}
         positions = [n for n, i in enumerate(items) if id(i) in order]
@@ -255,6 +310,24 @@ class JarvisSession:
         yield
 
     def run_case(self, request: pytest.FixtureRequest, case: cases.TaskCase) -> TaskResult:
+        """The task's result (kept, skipped or run now). A results folder that stopped taking files (full,
+        read-only, gone) ends the run instead: this task errors naming the folder, no later task starts, the
+        devices are removed at the end and what was written stays."""
+        why = self.storage_failure or storage.problem(self.run_dir, create=False)
+        if why is None:
+            try:
+                return self._run_case(request, case)
+            except OSError:
+                why = storage.problem(self.run_dir, create=False)
+                if why is None:
+                    raise  # not the results folder: a harness bug, shown as one
+        self.storage_failure = why  # outside the handler: pytest shows the message, not the chain behind it
+        message = (f"{self.run_dir}: {why}; the run stops here: its devices are removed and what it wrote is kept "
+                   f"(free space, then --resume {self.run_dir})")
+        request.session.shouldstop = message
+        pytest.fail(message, pytrace=False)
+
+    def _run_case(self, request: pytest.FixtureRequest, case: cases.TaskCase) -> TaskResult:
         agent = self.ensure_agent()
         task = case.task
         reason = skip_reason(task, self.options.backends)
@@ -312,15 +385,40 @@ class JarvisSession:
         run_id = run_state.resource_id(self.run_dir)
         if self.is_controller and self.state is not None:
             interrupted = self.interrupted or int(exitstatus) == int(pytest.ExitCode.INTERRUPTED)
-            self.state.finish(interrupted, int(exitstatus))
-            if self.new_run and not (self.run_dir / "plan.json").exists() and not (self.run_dir / "tasks").exists():
-                (self.run_dir / "run.json").unlink(missing_ok=True)  # nothing was selected: no empty run left
-                self.state = None
-            else:
-                self.summary = self.write_summary()
-        yield
-        if self.is_controller and (self.state is not None or self.interrupted) and not self.options.keep_devices:
+            try:
+                self.state.finish(interrupted or self.storage_failure is not None, int(exitstatus))
+                if (self.new_run and not (self.run_dir / "plan.json").exists()
+                        and not (self.run_dir / "tasks").exists()):
+                    (self.run_dir / "run.json").unlink(missing_ok=True)  # nothing was selected: no empty run left
+                    self.state = None
+                else:
+                    self.summary = self.write_summary()
+            except OSError as exc:  # the folder filled or went read-only: say so once; the devices still go
+                self._storage_failed(exc)
+        outcome = yield
+        if (isinstance(outcome.exception, OSError) and self.is_controller
+                and storage.problem(self.run_dir, create=False)):
+            self._storage_failed(outcome.exception)  # pytest-html's report.html in a folder that cannot take it
+            outcome.force_result(None)
+        # devices this session or an earlier one of the folder kept (--keep-devices) wait for `jarvis cleanup`
+        keep = self.options.keep_devices or (self.lock is not None and self.lock.keep_devices)
+        if self.is_controller and (self.state is not None or self.interrupted) and not keep:
             _remove_run_resources(run_id, self.options.docker_hosts)
+        self.release_results_folder()
+
+    def _storage_failed(self, exc: OSError) -> None:
+        """One line on stderr, once, when the end of the run (run.json, the summary, report.html) could not be
+        written into the results folder."""
+        if self._end_unwritten:
+            return
+        self._end_unwritten = True
+        why = storage.problem(self.run_dir, create=False) or f"{exc.strerror or exc}"
+        self.storage_failure = self.storage_failure or why
+        print(f"[jarvis] {self.run_dir}: {why}: the end of the run (run.json, the summary, report.html) was not "
+              "written; what was written before is kept", file=sys.stderr, flush=True)
+
+    def pytest_unconfigure(self, config: pytest.Config) -> None:
+        self.release_results_folder()  # a session that ended before its finish (the lock also dies with us)
 
     def write_summary(self):
         """summary.json and summary.md over every result of the run on disk and every task it planned."""
@@ -345,13 +443,19 @@ class JarvisSession:
 
 
 class _XdistHooks:
-    """Registered only when xdist is active: hand the controller's run directory to each worker."""
+    """Registered only when xdist is active: hand the controller's run directory to each worker; stop a run whose
+    workers collected tasks when no agent was chosen (a worker's usage error would be xdist's INTERNALERROR)."""
 
-    def __init__(self, run_dir: Path):
+    def __init__(self, run_dir: Path, needs_agent: bool):
         self.run_dir = run_dir
+        self.needs_agent = needs_agent
 
     def pytest_configure_node(self, node) -> None:
         node.workerinput["jarvis_run_dir"] = str(self.run_dir)
+
+    def pytest_xdist_node_collection_finished(self, node, ids: list[str]) -> None:
+        if self.needs_agent and any(f"::{name}[" in i for i in ids for name in TASK_TESTS):
+            pytest.exit(f"ERROR: {NO_AGENT}", returncode=pytest.ExitCode.USAGE_ERROR)
 
 
 def _check_transfer_image(flavour: str) -> None:
@@ -414,6 +518,9 @@ def _remove_orphans(hosts: tuple[str, ...] = ()) -> None:
     """What runs whose process is gone left on the run's engines (containers, networks); live runs are safe."""
     from jarvis_pytest.infra.engines import cleanup_everywhere
 
+    from jarvis_pytest.results.run_lock import prune
+
+    prune()
     try:
         counts = cleanup_everywhere(hosts, orphans_only=True)
     except Exception as exc:  # never a reason not to run; say it
@@ -448,7 +555,13 @@ def configure(config: pytest.Config) -> None:
     if workerinput is not None:
         session = JarvisSession(config, options, Path(workerinput["jarvis_run_dir"]), workerinput.get("workerid", "gw?"))
     else:
-        run_dir = (options.resume or options.results_dir or REPO_ROOT / "reports" / new_run_id()).resolve()
+        given = options.resume or options.results_dir or REPO_ROOT / "reports" / new_run_id()
+        try:
+            run_dir = given.resolve()
+        except (OSError, RuntimeError) as exc:  # a symlink loop, a path too long
+            option = "--resume" if options.resume else "--results-dir"
+            raise pytest.UsageError(str(ConfigError(f"cannot resolve the results folder ({exc})", path=given,
+                                                    field=option, fix=f"give another {option}"))) from None
         session = JarvisSession(config, options, run_dir, None)
     config.pluginmanager.register(session, PLUGIN_NAME)
     _sigterm_as_interrupt()
@@ -458,7 +571,8 @@ def configure(config: pytest.Config) -> None:
     if not session.is_controller:
         return
     if config.pluginmanager.hasplugin("xdist"):
-        config.pluginmanager.register(_XdistHooks(session.run_dir), "jarvis-xdist")
+        config.pluginmanager.register(_XdistHooks(session.run_dir, not options.agent and not config.option.collectonly),
+                                      "jarvis-xdist")
     if options.agent and not config.option.collectonly:
         try:
             session.start()

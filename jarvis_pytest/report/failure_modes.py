@@ -3,6 +3,8 @@ failures by hand; here every failed task gets one mode, the first that applies):
 
 - `step limit`: the agent ran out of steps (`end_reason` max_steps);
 - `gave up`: the agent declared FAIL;
+- `agent error`: the agent's own code ended the task (`end_reason` agent_error: it exited, or crashed steps in a
+  row; `plugin/blame.py`);
 - `done early`: the agent declared DONE with a failed subtask on whose device it never acted;
 - `transfer failed`: a file-transfer subtask failed (the file never got through the drive, or arrived wrong);
 - `context lost`: a subtask fed by an upstream subtask failed although everything upstream of it passed — the
@@ -16,7 +18,7 @@ from typing import Iterable
 
 from jarvis_pytest.results.model import SubtaskVerdict
 
-MODES = ("step limit", "gave up", "done early", "transfer failed", "context lost", "subtask failed")
+MODES = ("step limit", "gave up", "agent error", "done early", "transfer failed", "context lost", "subtask failed")
 
 
 def classify(verdicts: list[SubtaskVerdict], edges: Iterable[tuple[int, int]], end_reason: str,
@@ -30,6 +32,8 @@ def classify(verdicts: list[SubtaskVerdict], edges: Iterable[tuple[int, int]], e
         return "step limit"
     if end_reason == "fail":
         return "gave up"
+    if end_reason == "agent_error":
+        return "agent error"
     if end_reason == "done" and any(v.platform not in acted_on for v in failed):
         return "done early"
     if any(v.template.startswith("transfer-") for v in failed):

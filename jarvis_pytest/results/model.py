@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, model_validator
 
 Status = Literal["running", "passed", "failed", "error", "timeout", "skipped"]
 
@@ -59,14 +59,23 @@ class NegativeVerdict(BaseModel):
     step_errors: list[str] = Field(default_factory=list)
 
 
+# The most characters of a model's text a step keeps (`StepRecord.raw_output`, `reasoning`): a model that streams
+# megabytes would otherwise write them into traj.jsonl at every step (and the dashboard would send them to the
+# browser). The first CUT_TEXT_CHARS are kept and `cut` says how long the text was.
+CUT_TEXT_CHARS = 65536
+CUT_FIELDS = ("raw_output", "reasoning")
+
+
 class StepRecord(BaseModel):
-    """One line of traj.jsonl."""
+    """One line of traj.jsonl. A model text longer than `CUT_TEXT_CHARS` keeps its first `CUT_TEXT_CHARS`
+    characters, and `cut` maps the field to its original length (in characters)."""
 
     index: int
     platform: str | None
     action: dict[str, Any] | None
     reasoning: str = ""
     raw_output: str = ""
+    cut: dict[str, int] = Field(default_factory=dict)  # field → its length before it was cut to CUT_TEXT_CHARS
     error: str | None = None
     screenshots: dict[str, str] = Field(default_factory=dict)  # platform → file name (observation before acting)
     agent_ms: float = 0.0
@@ -74,6 +83,23 @@ class StepRecord(BaseModel):
     observe_ms: float = 0.0
     usage: dict[str, int] = Field(default_factory=dict)
     extra: dict[str, Any] = Field(default_factory=dict)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _cut_long_texts(cls, data: Any) -> Any:
+        """Keep the first CUT_TEXT_CHARS of each model text; `cut` records the length of each one cut."""
+        if not isinstance(data, dict):
+            return data
+        long = {f: data[f] for f in CUT_FIELDS if isinstance(data.get(f), str) and len(data[f]) > CUT_TEXT_CHARS}
+        if not long:
+            return data
+        data = dict(data)
+        cut = dict(data.get("cut") or {})
+        for name, text in long.items():
+            data[name] = text[:CUT_TEXT_CHARS]
+            cut[name] = len(text)
+        data["cut"] = cut
+        return data
 
 
 class TaskResult(BaseModel):

@@ -57,7 +57,9 @@ def resource_id(run_dir: Path) -> str:
 
 
 def process_alive(pid: int) -> bool:
-    """Whether process `pid` of this host still runs (a zombie does not)."""
+    """Whether process `pid` of this host still runs (a zombie does not; nor does a pid no process can have)."""
+    if isinstance(pid, bool) or not isinstance(pid, int) or not 0 < pid < 2**31:
+        return False
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -73,14 +75,14 @@ def process_alive(pid: int) -> bool:
 def _age_seconds(iso: str) -> float:
     try:
         return (datetime.now(timezone.utc) - datetime.fromisoformat(iso)).total_seconds()
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return float("inf")
 
 
 def liveness(meta: dict[str, Any] | None) -> str:
     """`running`, `finished` or `interrupted` from a run.json: a run marked running whose process is gone (same
     host) or whose heartbeat went stale (another host) was interrupted. `unknown` without a run.json."""
-    if not meta:
+    if not isinstance(meta, dict) or not meta:
         return "unknown"
     state = meta.get("state")
     if state in ("finished", "interrupted"):
@@ -90,7 +92,51 @@ def liveness(meta: dict[str, Any] | None) -> str:
     pid = meta.get("pid")
     if meta.get("host") == socket.gethostname() and isinstance(pid, int):
         return "running" if process_alive(pid) else "interrupted"
-    return "running" if _age_seconds(meta.get("heartbeat", "")) < STALE_SECONDS else "interrupted"
+    return "running" if heartbeat_fresh(meta) else "interrupted"
+
+
+def heartbeat_fresh(meta: dict[str, Any]) -> bool:
+    """Whether run.json's heartbeat is younger than STALE_SECONDS (a live run beats every HEARTBEAT_SECONDS)."""
+    return _age_seconds(meta.get("heartbeat", "")) < STALE_SECONDS
+
+
+def read_run_meta(run_dir: Path) -> tuple[dict[str, Any] | None, str | None]:
+    """run.json of `run_dir` as (meta, None); (None, None) when absent; (None, why) when it cannot be read or is
+    not a run.json (its problem, for a message naming the file)."""
+    path = Path(run_dir) / "run.json"
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        return None, None
+    except OSError as exc:
+        return None, f"cannot be read ({exc.strerror or exc})"
+    try:
+        data = json.loads(raw)
+    except (ValueError, UnicodeDecodeError) as exc:
+        return None, f"is not valid JSON ({exc})"
+    why = meta_problem(data)
+    return (None, why) if why else (data, None)
+
+
+_KINDS = {list: "a list", dict: "an object", str: "a string"}
+
+
+def meta_problem(data: Any) -> str | None:
+    """What makes parsed run.json content unusable (worded to follow the file's name), or None."""
+    if not isinstance(data, dict):
+        return "is not a JSON object"
+    for key, kind in (("sessions", list), ("engines", list), ("agent", dict), ("state", str), ("agent_key", str),
+                      ("started", str), ("finished", str), ("heartbeat", str), ("host", str)):
+        if data.get(key) is not None and not isinstance(data[key], kind):
+            return f"has a {key!r} that is not {_KINDS[kind]}"
+    pid = data.get("pid")
+    if pid is not None and (isinstance(pid, bool) or not isinstance(pid, int) or not 0 < pid < 2**31):
+        return f"has a 'pid' no process can have ({str(pid)[:20]})"
+    if not all(isinstance(s, dict) for s in data.get("sessions") or []):
+        return "has a 'sessions' entry that is not an object"
+    if not all(isinstance(e, str) for e in data.get("engines") or []):
+        return "has an 'engines' entry that is not a URL"
+    return None
 
 
 def is_run_dir(path: Path) -> bool:
@@ -155,12 +201,33 @@ class RunState:
 
 
 def read_plan(run_dir: Path) -> dict[str, Any]:
-    """plan.json as {"tasks", "categories", "digests"} (empty parts when missing)."""
+    """plan.json as {"tasks", "categories", "digests"} (empty parts when missing or not of their type:
+    `plan_problem` names those)."""
     plan = read_json(run_dir / "plan.json") or {}
-    tasks = [str(t) for t in plan.get("tasks") or []]
-    categories = {str(k): str(v) for k, v in (plan.get("categories") or {}).items()}
-    digests = {str(k): str(v) for k, v in (plan.get("digests") or {}).items()}
-    return {"tasks": tasks, "categories": categories, "digests": digests}
+    tasks = plan.get("tasks") if isinstance(plan.get("tasks"), list) else []
+    categories = plan.get("categories") if isinstance(plan.get("categories"), dict) else {}
+    digests = plan.get("digests") if isinstance(plan.get("digests"), dict) else {}
+    return {"tasks": [str(t) for t in tasks], "categories": {str(k): str(v) for k, v in categories.items()},
+            "digests": {str(k): str(v) for k, v in digests.items()}}
+
+
+def plan_problem(run_dir: Path) -> str | None:
+    """What makes `run_dir`'s plan.json unusable (worded to follow the file's name), or None (also when absent)."""
+    path = Path(run_dir) / "plan.json"
+    try:
+        data = json.loads(path.read_bytes())
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        return f"cannot be read ({exc.strerror or exc})"
+    except (ValueError, UnicodeDecodeError) as exc:
+        return f"is not valid JSON ({exc})"
+    if not isinstance(data, dict):
+        return "is not a JSON object"
+    for key, kind in (("tasks", list), ("categories", dict), ("digests", dict)):
+        if data.get(key) is not None and not isinstance(data[key], kind):
+            return f"has a {key!r} that is not {_KINDS[kind]}"
+    return None
 
 
 def merge_plan(run_dir: Path, tasks: list[Any]) -> None:

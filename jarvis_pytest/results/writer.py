@@ -20,11 +20,34 @@ def now_iso() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="milliseconds")
 
 
+def escape_surrogates(value: object) -> object:
+    """`value` (JSON data) with each lone surrogate in its strings written as its escape, the text `\\udXXX`: a
+    model's raw answer may hold one, and UTF-8 (and so every JSON reader) takes none."""
+    if isinstance(value, str):
+        return value.encode("utf-8", "backslashreplace").decode("utf-8") if _SURROGATE.search(value) else value
+    if isinstance(value, dict):
+        return {escape_surrogates(k): escape_surrogates(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [escape_surrogates(v) for v in value]
+    return value
+
+
+_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
 def write_json_atomic(path: Path, data: object) -> None:
     """Write JSON through a temporary file and a rename: readers never see half a file."""
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(data, indent=2, sort_keys=True, ensure_ascii=False) + "\n", encoding="utf-8")
-    os.replace(tmp, path)
+    try:
+        tmp.write_text(json.dumps(escape_surrogates(data), indent=2, sort_keys=True, ensure_ascii=False) + "\n",
+                       encoding="utf-8")
+        os.replace(tmp, path)
+    except BaseException:  # a full or read-only disk: no half-written temporary file left beside the old one
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:
+            pass
+        raise
 
 
 def task_dir(run_dir: Path, task_id: str) -> Path:
@@ -65,7 +88,11 @@ class TaskRecorder:
         return name
 
     def step(self, record: StepRecord) -> None:
-        self._traj.write(record.model_dump_json() + "\n")
+        try:
+            line = record.model_dump_json()
+        except ValueError:  # a lone surrogate (in a model's raw answer, say): written escaped
+            line = json.dumps(escape_surrogates(record.model_dump(mode="json")), ensure_ascii=False)
+        self._traj.write(line + "\n")
         self._traj.flush()
         if record.action is not None and record.platform:
             self.acted_on.add(record.platform)

@@ -30,6 +30,23 @@ DEVICES = Lazy(screen=_screen, keyboard=_keyboard)  # the X connections, opened 
 
 
 def _pyautogui(script: str) -> None:
+    """A PYAUTOGUI script, in a child process of its own (`run_script_here` there)."""
+    import os
+    import sys
+
+    from jarvis_pytest.devices.pyautogui_compat import run_isolated
+    from jarvis_pytest.devices.ubuntu.server.xinput import SPARE_ENV
+
+    kb = DEVICES.keyboard  # the child binds symbols to the same spare keycodes as this server: it takes them over
+    env = {**os.environ, SPARE_ENV: ",".join(map(str, kb.spare))}
+    try:
+        run_isolated([sys.executable, "-m", "jarvis_pytest.devices.ubuntu.server", "--run-script"], script, env=env)
+    finally:
+        kb.refresh_spare()
+
+
+def run_script_here(script: str) -> None:
+    """A PYAUTOGUI script on this process's own X connection (the child of `_pyautogui`)."""
     from jarvis_pytest.devices.pyautogui_compat import run_script
 
     kb = DEVICES.keyboard

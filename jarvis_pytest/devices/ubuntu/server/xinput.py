@@ -7,6 +7,7 @@ any text types exactly, `<>{}` included, without spawning a process per action.
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from collections import OrderedDict
@@ -16,6 +17,7 @@ from Xlib.ext import xtest
 
 BUTTONS = {"left": 1, "middle": 2, "right": 3}
 REBIND_AFTER_S = 0.3  # a spare keycode is bound to another symbol no sooner than this after its last use
+SPARE_ENV = "JARVIS_SPARE_KEYCODES"  # the server's spare keycodes, handed to the child that runs a PYAUTOGUI script
 KEY_ALIASES = {
     "ctrl": "Control_L", "control": "Control_L", "alt": "Alt_L", "shift": "Shift_L", "super": "Super_L",
     "win": "Super_L", "meta": "Super_L", "cmd": "Super_L", "enter": "Return", "return": "Return",
@@ -55,6 +57,25 @@ class Keyboard:
         # Keycodes without symbols, bound on demand to keysyms the layout lacks; least recently used rebound first.
         self.spare: OrderedDict[int, tuple[int, float]] = OrderedDict(  # keycode → (bound keysym, last used)
             (first + i, (0, 0.0)) for i, syms in enumerate(mapping) if not any(syms))
+        shared = os.environ.get(SPARE_ENV)
+        if shared:  # a script's child: the server's spare keycodes, bound as they are now and just used
+            now = time.monotonic()
+            codes = [int(c) for c in shared.split(",") if c.strip().isdigit() and first <= int(c) <= last]
+            self.spare = OrderedDict((c, (mapping[c - first][0], now if mapping[c - first][0] else 0.0))
+                                     for c in codes)
+
+    def refresh_spare(self) -> None:
+        """Take the spare keycodes' symbols from the server again (a script's child may have bound them anew)."""
+        if not self.spare:
+            return
+        with self.lock:
+            first = min(self.spare)
+            mapping = self.d.get_keyboard_mapping(first, max(self.spare) - first + 1)
+            now = time.monotonic()
+            for code, (bound, last_used) in list(self.spare.items()):
+                actual = mapping[code - first][0]
+                if actual != bound:
+                    self.spare[code] = (actual, now)
 
     # -- primitives -----------------------------------------------------------------------------------------
     def _check_point(self, x: int, y: int) -> None:

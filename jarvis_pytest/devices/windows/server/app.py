@@ -29,6 +29,16 @@ DEVICES = Lazy(screen=_screen, input=_input)  # screen and input, made on first 
 
 
 def _pyautogui(script: str) -> None:
+    """A PYAUTOGUI script, in a child process of its own (`run_script_here` there)."""
+    import sys
+
+    from jarvis_pytest.devices.pyautogui_compat import run_isolated
+
+    run_isolated([sys.executable, "-m", "jarvis_pytest.devices.windows.server", "--run-script"], script)
+
+
+def run_script_here(script: str) -> None:
+    """A PYAUTOGUI script on this process's own input (the child of `_pyautogui`)."""
     from jarvis_pytest.devices.pyautogui_compat import run_script
 
     kb = DEVICES.input
