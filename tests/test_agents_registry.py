@@ -4,6 +4,8 @@ GROUNDERS), clear errors for unknown names, broken modules and duplicates; and `
 from __future__ import annotations
 
 import json
+import re
+import sys
 from pathlib import Path
 
 import pytest
@@ -130,3 +132,46 @@ def test_jarvis_ground_errors(tmp_path, capsys):
     code = main(["ground", "--model", "holo2", "--base-url", "http://127.0.0.1:9/v1", "--image",
                  str(tmp_path / "x.txt"), "--instruction", "x"])
     assert code == 2 and "not a PNG" in capsys.readouterr().err
+
+
+class _Adapter:
+    name = "probe"
+
+    def __init__(self, options=None):
+        pass
+
+    def reset(self, task):
+        pass
+
+    def act(self, observations, history):
+        raise AssertionError
+
+    def config(self):
+        return {"name": self.name}
+
+
+def _raises(exc: BaseException):
+    def boom(*args, **kwargs):
+        raise exc
+    return boom
+
+
+@pytest.mark.parametrize("make, problem", [
+    (_raises(RuntimeError("no key")), "building it raised RuntimeError: no key"),
+    (lambda options: type("NoAct", (), {"reset": lambda s, t: None, "config": lambda s: {}})(), "no act method"),
+    (lambda options: type("BadCfg", (_Adapter,), {"config": _raises(ValueError("x"))})(), "config() raised"),
+    (lambda options: type("ListCfg", (_Adapter,), {"config": lambda s: ["probe"]})(), "not a dict"),
+    (lambda options: type("ObjCfg", (_Adapter,), {"config": lambda s: {"o": object()}})(), "not plain JSON"),
+    (lambda options: type("NanCfg", (_Adapter,), {"config": lambda s: {"t": float("nan")}})(), "not plain JSON"),
+])
+def test_a_broken_adapter_is_one_config_error_at_load(monkeypatch, make, problem):
+    """An adapter whose constructor or config() raises, that lacks a method of the protocol, or whose config is no
+    plain JSON (written into run.json) used to be an INTERNALERROR; now it is one error naming the agent."""
+    module = type(sys)("probe_adapters")
+    module.Make = make
+    monkeypatch.setitem(sys.modules, "probe_adapters", module)
+    with pytest.raises(ConfigError, match=re.escape(problem)) as info:
+        load_agent("probe_adapters:Make", {})
+    assert "probe_adapters:Make" in str(info.value) and info.value.field == "--agent"
+    module.Make = _Adapter
+    assert isinstance(load_agent("probe_adapters:Make", {}), _Adapter)

@@ -15,6 +15,7 @@ Adapter modules are plain ``.py`` files loaded by path (no package needed). A mo
 from __future__ import annotations
 
 import importlib
+import json
 import importlib.util
 import sys
 import threading
@@ -149,16 +150,46 @@ def load_agent(name: str, options: dict[str, Any] | None = None, *, agents_dir: 
     (called with the options dict). Unknown names raise ConfigError listing the known ones."""
     options = dict(options or {})
     if name in BUILTIN:
-        return BUILTIN[name](options)
+        return _checked(name, lambda: BUILTIN[name](options))
     catalog = discover(agents_dir)
     if name in catalog.agents:
-        return catalog.agents[name](options)
+        return _checked(name, lambda: catalog.agents[name](options))
     if ":" in name:
         obj = _import_object(name)
         if isinstance(obj, type) and issubclass(obj, Grounder):
-            return build_planner_grounder(obj.name or name, obj, options)
-        return obj(options)
+            return _checked(name, lambda: build_planner_grounder(obj.name or name, obj, options))
+        return _checked(name, lambda: obj(options))
     raise _unknown("agent", name, known_agents(agents_dir), catalog)
+
+
+def _checked(name: str, build: Callable[[], Any]) -> Agent:
+    """The agent `build` makes, once it is shown to be one: built without raising, with callable `reset`, `act`
+    and `config`, and a `config()` that gives a dict of plain JSON (recorded with every result). Otherwise one ConfigError
+    naming the agent, never a traceback."""
+    def fail(problem: str) -> ConfigError:
+        return ConfigError(f"agent {name!r}: {problem}", field="--agent",
+                           fix="fix the adapter (see agents/README.md for the protocol) or choose another agent")
+
+    try:
+        agent = build()
+    except ConfigError:
+        raise
+    except Exception as exc:
+        raise fail(f"building it raised {exc.__class__.__name__}: {exc}") from None
+    missing = [m for m in ("reset", "act", "config") if not callable(getattr(agent, m, None))]
+    if missing:
+        raise fail(f"it has no {', '.join(missing)} method (a {type(agent).__name__})")
+    try:
+        config = agent.config()
+    except Exception as exc:
+        raise fail(f"its config() raised {exc.__class__.__name__}: {exc}") from None
+    if not isinstance(config, dict):
+        raise fail(f"its config() gave a {type(config).__name__}, not a dict")
+    try:
+        json.dumps(config, allow_nan=False)
+    except (TypeError, ValueError, RecursionError) as exc:
+        raise fail(f"its config() is not plain JSON ({exc})") from None
+    return agent
 
 
 def load_grounder_class(name: str, *, agents_dir: Path | None = None) -> type[Grounder]:
