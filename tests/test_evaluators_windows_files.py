@@ -634,11 +634,15 @@ def test_moves_and_trash_count_hidden_originals_and_copies(dev):
     assert "a copy of old_invoice.txt left at old_invoice.tmp" in reasons(check(dev, sub, base))
 
 
-def test_exact_folders_count_hidden_entries(dev):
+def _logs_to_rename(dev):
+    """cmd_rename_extension set up on `dev`: the subtask, its baseline and the host path of its logs folder."""
     sub = instance("cmd_rename_extension", folder="C:\\Users\\user\\Documents\\logs", old_ext=".log",
                    new_ext=".txt", token="owl-5")
-    base = set_up(dev, sub)
-    folder = dev.host(sub.input["folder"].value)
+    return sub, set_up(dev, sub), dev.host(sub.input["folder"].value)
+
+
+def test_exact_folders_count_hidden_entries(dev):
+    sub, base, folder = _logs_to_rename(dev)
     for n in ("alpha", "beta", "gamma"):
         shutil.copy(folder / f"{n}.log", folder / f"{n}.txt")
         dev.attrs[folder / f"{n}.log"] = HIDDEN  # renamed copies; the old files kept, hidden
@@ -769,10 +773,7 @@ def test_count_files_leaves_the_counted_folder_as_it_was(dev):
 
 
 def test_rename_extension(dev):
-    sub = instance("cmd_rename_extension", folder="C:\\Users\\user\\Documents\\logs", old_ext=".log",
-                   new_ext=".txt", token="owl-5")
-    base = set_up(dev, sub)
-    folder = dev.host(sub.input["folder"].value)
+    sub, base, folder = _logs_to_rename(dev)
     assert not passed(check(dev, sub, base))
     os.rename(folder / "alpha.log", folder / "alpha.txt")  # negative: only alpha
     assert "no beta.txt" in reasons(check(dev, sub, base)) and "beta.log still there" in reasons(check(dev, sub, base))
