@@ -691,7 +691,6 @@ def test_list_files(dev):
     sub = instance("cmd_list_files", folder="C:\\Users\\user\\Documents\\invoices", stem="owl", n=123)
     base = set_up(dev, sub)
     listing = sub.output["listing"].value
-    folder = dev.host(sub.input["folder"].value)
     assert listing == "C:\\Users\\user\\Documents\\invoices_files.txt"
     assert "no file" in reasons(check(dev, sub, base))
     dev.upload(listing, b"IMG_123.png\r\nnotes_owl.md\r\nowl_1.txt\r\nowl_2.csv\r\n")  # dir /b /a-d

@@ -21,7 +21,6 @@ from jarvis_pytest.devices.base import CommandResult
 from jarvis_pytest.devices.platforms import PLATFORMS
 from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.evaluators import get_evaluator
-from jarvis_pytest.evaluators.browser import bookmarks_checksum
 from jarvis_pytest.evaluators.state import FinalState
 from jarvis_pytest.evaluators import windows_registry as wr
 from jarvis_pytest.evaluators.windows_registry import (Branch, RegKey, RegValue, branch_changes, check_reg_export,

@@ -20,11 +20,11 @@ import math
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 from pydantic import BaseModel
 
-from jarvis_pytest.agents.protocol import Agent, AgentStep, HistoryEntry
+from jarvis_pytest.agents.protocol import Agent, AgentStep, HistoryEntry, TaskContext
 from jarvis_pytest.devices.actions import TERMINAL_TYPES, Action, parse_action
 from jarvis_pytest.devices.base import Device, Observation
 from jarvis_pytest.errors import InfrastructureError

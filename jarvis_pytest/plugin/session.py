@@ -541,7 +541,7 @@ def _remove_run_resources(run_id: str, hosts: tuple[str, ...] = ()) -> None:
         print(f"[jarvis] {exc}; run `jarvis cleanup --run {run_id}{hint}`", file=sys.stderr, flush=True)
         return
     if any(counts.values()):
-        print(f"[jarvis] removed what the stopped tasks left: " + ", ".join(f"{v} {k}" for k, v in counts.items()),
+        print("[jarvis] removed what the stopped tasks left: " + ", ".join(f"{v} {k}" for k, v in counts.items()),
               file=sys.stderr, flush=True)
 
 

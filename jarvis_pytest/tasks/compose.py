@@ -36,7 +36,7 @@ from jarvis_pytest.tasks.instances import materialise, sample_inputs
 from jarvis_pytest.tasks.instruction import merged_instruction
 from jarvis_pytest.tasks.library import Library
 from jarvis_pytest.tasks.model import BoundSlot, Edge, Scalar, Subtask, Task, TaskTemplate
-from jarvis_pytest.tasks.transfer import TRANSFER_INPUT, TRANSFER_OUTPUT, is_transfer, transfer_template
+from jarvis_pytest.tasks.transfer import TRANSFER_INPUT, TRANSFER_OUTPUT, transfer_template
 
 CATEGORIES = ("sw", "mi", "md")
 DEPENDENT = "dependent"  # unbalanced datasets: Algorithm 1 over the whole library, SW or MD by outcome
