@@ -29,7 +29,7 @@ def _cleanup(args) -> int:
     from pathlib import Path
 
     from jarvis_pytest.infra import engines
-    from jarvis_pytest.plugin.options import REPO_ROOT
+    from jarvis_pytest.infra.images import REPO_ROOT
     from jarvis_pytest.results import run_lock
     from jarvis_pytest.results.run_state import read_json, resource_id
 
