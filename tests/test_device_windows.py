@@ -530,6 +530,40 @@ def test_the_oracle_acts_on_its_subtasks_window_not_on_another_of_the_same_title
         device.run("taskkill /f /im wordpad.exe & taskkill /f /im notepad.exe")
 
 
+# A program whose window is titled `early` and renames itself a second after it shows (an earlier launch still
+# loading its file), one whose window shows three seconds after it starts (a slow launch), and one that renames
+# another program's window and exits (a launch that hands its file to a program that was running).
+PYTHONW = r"C:\jarvis\python\pythonw.exe"
+_USER32 = "import ctypes,time; u=ctypes.windll.user32; "
+RENAMES_ITSELF = (_USER32 + "import threading\n"
+                  "def later():\n"
+                  "    while not u.FindWindowW(None,'early'): time.sleep(0.02)\n"
+                  "    time.sleep(1.0); u.SetWindowTextW(u.FindWindowW(None,'early'),'early, renamed')\n"
+                  "threading.Thread(target=later,daemon=True).start(); u.MessageBoxW(0,'a','early',0)")
+SHOWS_LATE = _USER32 + "time.sleep(3); u.MessageBoxW(0,'b','late',0)"
+RENAMES_ANOTHER = _USER32 + "u.SetWindowTextW(u.FindWindowW(None,'early, renamed'),'handed over')"
+
+
+def test_a_launch_is_not_answered_with_an_earlier_launchs_window_that_changed_its_title(device, http):
+    """A launch answers with its own window: a title change of another program's window counts only once the
+    launched program has ended (the second of two WordPads on one file was answered with the first's id while that
+    one was still loading its file; CI failed on it once)."""
+    def shown(title):
+        return wait_for(lambda: next((x for x in windows(http) if x["title"] == title), None), 10, title,
+                        str(http.base_url))
+
+    try:
+        early = device.launch_window(PYTHONW, "-c", RENAMES_ITSELF, window_wait=20).id
+        assert early == shown("early")["id"]
+        late = device.launch_window(PYTHONW, "-c", SHOWS_LATE, window_wait=20).id  # `early` is renamed meanwhile
+        assert shown("early, renamed")["id"] == early
+        assert late and late != early and late == shown("late")["id"]
+        handed = device.launch_window(PYTHONW, "-c", RENAMES_ANOTHER, window_wait=20).id
+        assert handed == early and shown("handed over")["id"] == early  # its program ended: the change is its
+    finally:
+        device.run("taskkill /f /im pythonw.exe")
+
+
 def test_windows_are_named_by_id_and_the_newest_of_a_title_is_brought_to_the_front(device, http):
     """`launch` names the window it waited for; `focus` by `id` brings that window and no other of the same title,
     by title the newest; a foreground that is already the window's own (its menu open) is left as it is; `windows`

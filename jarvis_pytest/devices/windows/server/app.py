@@ -164,13 +164,13 @@ class Handler(ControlHandler):
         req = self._request("launch")
         before = app_windows() if req["window_wait"] else {}
         try:
-            launch(req["app"], req["args"])
+            pid = launch(req["app"], req["args"])
         except FileNotFoundError:
             raise HttpError(404, f"no application {req['app']!r} on this device (give a program on its PATH, e.g. "
                                  "notepad, wordpad, regedit, explorer, cmd, taskmgr, or a full path)") from None
         except OSError as exc:
             raise HttpError(400, f"cannot start {req['app']!r}: {exc}") from None
-        self._window_shown(new_window(before, req["window_wait"]))
+        self._window_shown(new_window(before, req["window_wait"], pid))
 
     def _window_shown(self, hwnd: int | None) -> None:
         self._json(200, {"ok": True, "window": hwnd is not None, "id": hwnd})
@@ -231,10 +231,10 @@ class Handler(ControlHandler):
             raise HttpError(404, f"no file or folder at {path}")
         before = app_windows() if req["window_wait"] else {}
         try:
-            open_path(path)
+            pid = open_path(path)
         except OSError as exc:
             raise HttpError(400, str(exc)) from None
-        self._window_shown(new_window(before, req["window_wait"]))
+        self._window_shown(new_window(before, req["window_wait"], pid))
 
     def windows(self) -> None:
         from .desktop import windows

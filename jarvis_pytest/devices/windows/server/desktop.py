@@ -66,6 +66,18 @@ def process_started(pid: int) -> int:
         w.CloseHandle(handle)
 
 
+def process_running(pid: int) -> bool:
+    """Whether process `pid` still runs (False when it ended or cannot be looked at)."""
+    handle = w.OpenProcess(w.PROCESS_QUERY_LIMITED_INFORMATION, False, pid) if pid else 0
+    if not handle:
+        return False
+    try:
+        code = w.W.DWORD()
+        return bool(w.GetExitCodeProcess(handle, ctypes.byref(code))) and code.value == w.STILL_ACTIVE
+    finally:
+        w.CloseHandle(handle)
+
+
 def describe(hwnd: int) -> dict:
     """{"id", "title", "class", "pid"} of a window (0 for none)."""
     if not hwnd:
@@ -157,10 +169,13 @@ def app_windows() -> dict[int, str]:
     return found
 
 
-def new_window(before: dict[int, str], seconds: float) -> int | None:
-    """What a launch waits for (`control_http.wait_for_window`), as the window: within `seconds`, the id of a new
-    application window (the topmost of several), else of one whose title changed (a file opened into a window that
-    was there); None after `seconds` without either."""
+def new_window(before: dict[int, str], seconds: float, pid: int = 0) -> int | None:
+    """What a launch of process `pid` waits for (`control_http.wait_for_window`), as the window: within `seconds`,
+    the id of a new application window (the process's own first, then the topmost), else of one whose title changed
+    (a file opened into a window that was there); None after `seconds` without either. Another process's title
+    change counts only once `pid` has ended (it handed its file to a program that was running): a window of an
+    earlier launch still loading its own file is not this launch's (two WordPads on one file took the first's id
+    for the second's). `pid` 0 (none known): every change counts."""
     import time
 
     deadline = time.monotonic() + seconds
@@ -169,6 +184,9 @@ def new_window(before: dict[int, str], seconds: float) -> int | None:
         now = app_windows()
         new = [hwnd for hwnd in now if hwnd not in before]
         changed = [hwnd for hwnd, title in now.items() if hwnd in before and before[hwnd] != title]
+        if pid:
+            new.sort(key=lambda hwnd: window_pid(hwnd) != pid)
+            changed = [hwnd for hwnd in changed if window_pid(hwnd) == pid or not process_running(pid)]
         if new or changed:
             return (new or changed)[0]
     return None

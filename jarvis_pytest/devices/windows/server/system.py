@@ -173,8 +173,8 @@ def _reap(proc: subprocess.Popen) -> None:
     threading.Thread(target=proc.wait, name="reap", daemon=True).start()
 
 
-def launch(app: str, args: list[str]) -> None:
-    """Start a program detached from the server (a console program in its own console window);
+def launch(app: str, args: list[str]) -> int:
+    """Start a program detached from the server (a console program in its own console window); its process id.
     FileNotFoundError when there is no such program."""
     exe = resolve(app)
     if exe is None:
@@ -183,16 +183,22 @@ def launch(app: str, args: list[str]) -> None:
     flags = subprocess.CREATE_NEW_CONSOLE | subprocess.CREATE_NEW_PROCESS_GROUP
     proc = _popen([exe, *args], creationflags=flags, cwd=os.path.expanduser("~"))
     _reap(proc)
+    return proc.pid
 
 
-def open_path(path: str) -> None:
-    """Open a file or folder with its associated program (ShellExecuteEx "open")."""
+def open_path(path: str) -> int:
+    """Open a file or folder with its associated program (ShellExecuteEx "open"); the id of the process it
+    started, 0 when it started none (the file went to a program that was running)."""
     mask = w.SEE_MASK_FLAG_NO_UI | w.SEE_MASK_NOASYNC | w.SEE_MASK_NOCLOSEPROCESS
     info = w.SHELLEXECUTEINFOW(cbSize=ctypes.sizeof(w.SHELLEXECUTEINFOW), lpVerb="open", lpFile=path,
                                nShow=w.SW_SHOWNORMAL, fMask=mask, lpDirectory=ntpath.dirname(path))
     if not w.ShellExecuteExW(ctypes.byref(info)):
         raise OSError(ctypes.get_last_error(), f"no program opens {path} (error {ctypes.get_last_error()})")
-    if info.hProcess:
+    if not info.hProcess:
+        return 0
+    try:
+        return int(w.GetProcessId(info.hProcess))
+    finally:
         w.CloseHandle(info.hProcess)
 
 

@@ -193,6 +193,8 @@ GlobalFree = _fn(kernel32, "GlobalFree", W.HGLOBAL, W.HGLOBAL)
 GlobalSize = _fn(kernel32, "GlobalSize", ctypes.c_size_t, W.HGLOBAL)
 WaitForInputIdle = _fn(user32, "WaitForInputIdle", W.DWORD, W.HANDLE, W.DWORD)
 GetProcessId = _fn(kernel32, "GetProcessId", W.DWORD, W.HANDLE)
+GetExitCodeProcess = _fn(kernel32, "GetExitCodeProcess", W.BOOL, W.HANDLE, ctypes.POINTER(W.DWORD))
+STILL_ACTIVE = 259
 GetProcessTimes = _fn(kernel32, "GetProcessTimes", W.BOOL, W.HANDLE, ctypes.POINTER(W.FILETIME),
                       ctypes.POINTER(W.FILETIME), ctypes.POINTER(W.FILETIME), ctypes.POINTER(W.FILETIME))
 OpenProcess = _fn(kernel32, "OpenProcess", W.HANDLE, W.DWORD, W.BOOL, W.DWORD)
