@@ -14,7 +14,7 @@ STAMP := $(VENV)/.installed
 # assertion-rewrites the harness again, about 0.7 CPU-s a process. pytest reads caches written earlier either way.
 unexport PYTHONDONTWRITEBYTECODE
 
-.PHONY: setup engine images host-packages test test-android bench clean-devices
+.PHONY: setup engine images host-packages test test-android test-windows-real bench clean-devices
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -51,6 +51,14 @@ test: images host-packages
 ## reason where there is neither
 test-android: setup host-packages
 	$(BIN)/pytest -p no:cacheprovider tests/test_library_android.py -m android_live -rs $(PYTEST_ARGS)
+
+## test-windows-real: the Windows QC sample (one template per application) on the kvm backend, a VM per task,
+## then one report to paste: the golden's image, digest and Windows, and per task what passed, failed and why
+## (prepare it first: JARVIS_WINDOWS_DOWNLOAD=1 jarvis images build --only windows-real; see
+## fixtures/images/windows-real/README.md); skipped with the reason where there is no prepared KVM Windows
+test-windows-real: setup
+	JARVIS_WINDOWS_LIVE=1 $(BIN)/pytest -p no:cacheprovider -s -rs \
+	  tests/test_device_windows_real.py::test_live_quality_gate $(PYTEST_ARGS)
 
 ## bench: run every task this machine's devices can run (AGENT=oracle by default; others are skipped with the
 ## reason) and write the tables and a report; MARKERS="ubuntu and atomic" narrows it. Tasks the agent fails are

