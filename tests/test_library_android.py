@@ -211,11 +211,27 @@ def test_quality_gate_on_the_simulated_device(android_library, template, tmp_pat
 
 
 # -- the live gate ------------------------------------------------------------------------------------------------
+def run_live_gate(extra: list[str], results: Path) -> subprocess.CompletedProcess:
+    """`jarvis qc --platform android` with `extra` pytest arguments; prints its table (every instance: fresh device,
+    negatives, oracle, the gate, and the first reason of a failure or a skip) and where the results are, so that
+    one paste of the output reports the run."""
+    res = subprocess.run([sys.executable, "-m", "jarvis_pytest.cli", "qc", "--platform", "android", "--instances",
+                          os.environ.get("JARVIS_ANDROID_INSTANCES", "1"), "-n", "1", "--results-dir", str(results),
+                          "--", *extra], cwd=REPO, capture_output=True, text=True, timeout=4 * 3600)
+    table = results / "qc.md"
+    report = table.read_text() if table.exists() else res.stdout[-4000:]
+    print(f"\n-- jarvis qc --platform android ({' '.join(extra)}): exit {res.returncode} --\n{report}")
+    if res.returncode != 0:
+        print(res.stderr[-2000:])
+    print(f"results: {results}")
+    return res
+
+
 @pytest.mark.android_live
-def test_live_quality_gate(tmp_path):
+def test_live_quality_gate(tmp_path, capsys):
     """`jarvis qc --platform android` on a real device: an attached one (JARVIS_ANDROID_SERIAL) or the prepared
-    emulator image. Skipped, with what would run it, where there is neither (as on the machine this was written
-    on: the Android library has not been run live)."""
+    emulator image; its table goes to the terminal whether it passes or not. Skipped, with what would run it, where
+    there is neither (as on the machine this was written on: the Android library has not been run live)."""
     from jarvis_pytest.devices.backend import backend_for
     from jarvis_pytest.errors import JarvisError
 
@@ -225,12 +241,11 @@ def test_live_quality_gate(tmp_path):
         pytest.skip(f"no Android device here ({exc}); with a device: JARVIS_ANDROID_SERIAL=<serial> make "
                     "test-android, or after `JARVIS_ANDROID_DOWNLOAD=1 jarvis images build --only android` on a "
                     "machine with /dev/kvm: make test-android")
-    extra = ["--", "--android-backend", backend.name]
+    extra = ["--android-backend", backend.name]
     if backend.name == "attach":
         extra += ["--android-serial", os.environ.get("JARVIS_ANDROID_SERIAL", "")]
-    res = subprocess.run([sys.executable, "-m", "jarvis_pytest.cli", "qc", "--platform", "android", "--instances",
-                          os.environ.get("JARVIS_ANDROID_INSTANCES", "1"), "-n", "1", "--results-dir",
-                          str(tmp_path / "qc"), *extra], cwd=REPO, capture_output=True, text=True, timeout=4 * 3600)
+    with capsys.disabled():
+        res = run_live_gate(extra, tmp_path / "qc")
     table = tmp_path / "qc" / "qc.md"
     report = table.read_text() if table.exists() else res.stdout[-4000:]
     assert res.returncode == 0, report + res.stderr[-2000:]

@@ -29,4 +29,7 @@ def skip_reason(task: Task, choices: dict[str, str]) -> str | None:
         if wanted and backend.name not in wanted:
             return (f"{sub.template} needs the {platform} backend {' or '.join(wanted)}; this machine runs "
                     f"{backend.label}; to run it: {_how(platform)}")
+        missing = getattr(backend, "subtask_unavailable", None)  # e.g. an attached phone without the template's app
+        if missing is not None and (why := missing(sub)):
+            return why
     return None

@@ -151,6 +151,12 @@ class EmulatorBackend(Backend):
 class AttachBackend(Backend):
     """A device the user names by serial: nothing to create or remove; one task at a time."""
 
+    def subtask_unavailable(self, sub) -> str | None:
+        """Why `sub` cannot run on the attached device: an app it launches is not installed there (`apps.py`)."""
+        from jarvis_pytest.devices.android.apps import attach_skip_reason
+
+        return attach_skip_reason(configured_serial(), sub)
+
     def boot(self, request: "BootRequest") -> "BootedDevice":
         from jarvis_pytest.infra.containers import BootedDevice
 

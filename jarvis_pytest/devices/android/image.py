@@ -2,12 +2,15 @@
 
 `build()` is what `jarvis images build --only android` runs (an entry of `infra/images.py`'s `PREPARED`: never
 part of a build of all images). Building (`fixtures/images/android/android.Dockerfile`, a name the Dockerfile
-discovery skips) downloads the Android SDK command-line tools, the emulator and the system image from
-dl.google.com and ADBKeyBoard from github.com; preparing boots the image once with /dev/kvm, installs
-ADBKeyBoard, sets the device up, saves the emulator snapshot `golden` and commits the container as the image
-the `emulator` backend runs (each task then starts `-read-only -no-snapshot-save` from that snapshot). Before
-anything is downloaded, `build_blocker` says what is missing; whether the internet can be reached is declared
-by the user (`JARVIS_ANDROID_DOWNLOAD=1`), never probed: nothing here sends a packet to find out.
+discovery skips) downloads what `fixtures/images/android/manifest.json` pins — the emulator and the system image
+from dl.google.com, ADBKeyBoard from github.com, Markor and Etar from f-droid.org — each verified against its
+SHA-256 (a pin without one stops the build first, naming the field: `apps.check_pins`); preparing boots the image
+once with /dev/kvm, installs the APKs, sets the device up, dismisses the first-run screens and permission prompts
+of every app the library uses, saves the emulator snapshot `golden` (with `-no-snapshot-save`: no quick-boot
+snapshot besides it) and commits the container as the image the `emulator` backend runs (each task then starts
+`-read-only -no-snapshot-save` from that snapshot). Before anything is downloaded, `build_blocker` says what is
+missing; whether the internet can be reached is declared by the user (`JARVIS_ANDROID_DOWNLOAD=1`), never probed:
+nothing here sends a packet to find out.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ import os
 import time
 from pathlib import Path
 
+from jarvis_pytest.devices.android import apps
 from jarvis_pytest.errors import InfrastructureError
 
 IMAGE_NAME = "android"
@@ -25,9 +29,10 @@ SNAPSHOT_LABEL = "org.jarvis.android.snapshot"
 SNAPSHOT = "golden"
 KVM = Path("/dev/kvm")
 PREPARE_TIMEOUT = 1800.0
-NEEDS = ("internet access to dl.google.com (Android SDK command-line tools, emulator, system image "
-         "system-images;android-33;google_apis;x86_64) and github.com (ADBKeyBoard), and /dev/kvm for the "
-         "first boot that makes the golden snapshot")
+NEEDS = ("internet access to dl.google.com (the emulator and the system image "
+         "system-images;android-33;google_apis;x86_64), github.com (ADBKeyBoard) and f-droid.org (Markor, Etar), "
+         "and /dev/kvm for the first boot that makes the golden snapshot")
+FIRST_RUN_PREFIX = "first-run: "   # the entrypoint's report of the preparation: installed, granted, tapped, checked
 
 
 def kvm_problem() -> str | None:
@@ -46,8 +51,8 @@ def build_blocker() -> str | None:
     if kvm:
         problems.append(kvm)
     if os.environ.get(DOWNLOAD_ENV) != "1":
-        problems.append(f"downloads are not enabled ({DOWNLOAD_ENV}=1 declares that dl.google.com and github.com "
-                        "are reachable; nothing is probed)")
+        problems.append(f"downloads are not enabled ({DOWNLOAD_ENV}=1 declares that dl.google.com, github.com and "
+                        "f-droid.org are reachable; nothing is probed)")
     if not problems:
         return None
     return (f"the Android emulator image needs {NEEDS}; here: {'; '.join(problems)}. On a machine with both, run "
@@ -56,7 +61,9 @@ def build_blocker() -> str | None:
 
 def build() -> str:
     """Build the emulator image and prepare its golden snapshot; returns its tag. Stops first, with what is
-    missing, where `build_blocker` says it cannot run."""
+    missing, where the manifest has a download it cannot verify or `build_blocker` says it cannot run."""
+    manifest = apps.load_manifest()
+    apps.check_pins(manifest)
     why = build_blocker()
     if why:
         raise InfrastructureError(why)
@@ -67,9 +74,11 @@ def build() -> str:
     base = images.ensure_base(client)
     tag = images.image_tag(IMAGE_NAME)
     context = images.IMAGES_DIR / IMAGE_NAME
-    images._progress(f"{IMAGE_NAME}: building {tag} from {DOCKERFILE} (downloads about 2 GB)")
+    images._progress(f"{IMAGE_NAME}: building {tag} from {DOCKERFILE} (downloads about 1.5 GB, each verified "
+                     f"against manifest.json)")
     tail: list[str] = []
-    for chunk in client.api.build(path=str(context), dockerfile=DOCKERFILE, tag=tag, buildargs={"BASE": base},
+    for chunk in client.api.build(path=str(context), dockerfile=DOCKERFILE, tag=tag,
+                                  buildargs={"BASE": base} | apps.build_args(manifest),
                                   rm=True, forcerm=True, network_mode="host", decode=True,
                                   labels={images.NAME_LABEL: IMAGE_NAME}):
         if "error" in chunk:
@@ -77,15 +86,16 @@ def build() -> str:
         line = chunk.get("stream", "")
         if line:
             tail = (tail + [line])[-200:]
-            if line.startswith("Step "):
+            if line.startswith(("Step ", "fetch: ")):
                 images._progress(f"{IMAGE_NAME}: {line.strip()[:160]}")
-    images._progress(f"{IMAGE_NAME}: first boot with /dev/kvm to save the golden snapshot (minutes)")
+    images._progress(f"{IMAGE_NAME}: first boot with /dev/kvm: apps, first-run screens, golden snapshot (minutes)")
     return prepare(client, tag)
 
 
 def prepare(client, tag: str, timeout: float = PREPARE_TIMEOUT) -> str:
-    """Boot the built image once with /dev/kvm (no network), let its entrypoint install ADBKeyBoard, set the
-    device up and save the `golden` snapshot, then commit the container over `tag`. Returns `tag`."""
+    """Boot the built image once with /dev/kvm (no network), let its entrypoint install the pinned APKs, set the
+    device up, dismiss every first-run screen and save the `golden` snapshot, then commit the container over
+    `tag`, saying what the first run did. Returns `tag`."""
     problem = kvm_problem()
     if problem:
         raise InfrastructureError(f"preparing the Android image needs /dev/kvm: {problem}")
@@ -101,15 +111,25 @@ def prepare(client, tag: str, timeout: float = PREPARE_TIMEOUT) -> str:
                 raise InfrastructureError(f"preparing {tag} took more than {timeout:.0f} s")
             time.sleep(5)
         code = container.attrs["State"].get("ExitCode")
+        log = container.logs().decode("utf-8", "replace")
         if code != 0:
-            tail = container.logs(tail=60).decode("utf-8", "replace")
+            tail = "\n".join(log.splitlines()[-60:])
             raise InfrastructureError(f"preparing {tag} failed (exit {code}):\n{tail}")
+        from jarvis_pytest.infra import images
+
+        for line in first_run_lines(log):
+            images._progress(f"{IMAGE_NAME}: {line}")
         repo, _, version = tag.rpartition(":")
         container.commit(repository=repo, tag=version,
                          changes=[f"LABEL {SNAPSHOT_LABEL}={SNAPSHOT}", 'CMD ["run"]'])
         return tag
     finally:
         container.remove(force=True, v=True)
+
+
+def first_run_lines(log: str) -> list[str]:
+    """The lines of the preparation's log that say what was installed, granted, tapped and checked."""
+    return [line.strip() for line in log.splitlines() if line.startswith(FIRST_RUN_PREFIX)]
 
 
 def image_state(client, ref: str) -> str | None:
