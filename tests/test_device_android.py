@@ -630,17 +630,24 @@ def test_small_parsers():
 # -- the backends on this machine ------------------------------------------------------------------------------
 def test_backends_say_why_they_cannot_run_here_and_how_to(monkeypatch):
     monkeypatch.delenv(B.SERIAL_ENV, raising=False)
-    monkeypatch.setitem(B._config, "serial", None)
-    assert "--android-serial" in B.ATTACH.unavailable()
-    B.configure(serial="127.0.0.1:5999")
-    assert B.ATTACH.unavailable() is None
+    monkeypatch.delenv(B.IMAGE_ENV, raising=False)
+    assert "android.serial=SERIAL" in B.ATTACH.configure({}).unavailable()
+    attach = B.ATTACH.configure({"serial": "127.0.0.1:5999"})  # the option (--backend-option android.serial=...)
+    assert attach.unavailable() is None and attach.values == {"serial": "127.0.0.1:5999"}
+    assert B.ATTACH.unavailable() is not None  # the backend as defined is untouched: no module-wide setting
+    monkeypatch.setenv(B.SERIAL_ENV, "emulator-5554")  # the older variable, when the option is not given
+    assert B.ATTACH.configure({}).values == {"serial": "emulator-5554"}
     why = B.EMULATOR.unavailable()
     assert why and ("jarvis images build --only android" in why or "/dev/kvm" in why or "Docker" in why), why
     assert "jarvis images build --only android" in B.EMULATOR.how_to_run
-    assert "--android-serial" in B.ATTACH.how_to_run
+    assert "--android-serial" in B.ATTACH.how_to_run and "android.serial" in B.ATTACH.how_to_run
     assert (B.EMULATOR.label, B.ATTACH.label) == ("android (emulator)", "android (attach)")
-    monkeypatch.setitem(B._config, "image", "example/android:34")
-    assert B.EMULATOR.image_ref == "example/android:34"
+    from jarvis_pytest.infra.images import image_tag
+
+    assert B.EMULATOR.image_ref == image_tag(I.IMAGE_NAME) == B.DEFAULT_IMAGE
+    assert B.EMULATOR.configure({"image": "example/android:34"}).image_ref == "example/android:34"
+    monkeypatch.setenv(B.IMAGE_ENV, "example/android:35")
+    assert B.EMULATOR.configure({}).image_ref == "example/android:35"
 
 
 def test_the_image_build_stops_here_with_what_it_needs(monkeypatch):

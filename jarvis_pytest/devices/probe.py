@@ -3,7 +3,8 @@ and quick measurements, independent of the task lifecycle in `infra/` (which is 
 
     python -m jarvis_pytest.devices.probe [--boots 5] [--samples 50]
 
-prints cold start (create → ready), screenshot, action and accessibility-tree latencies (p50/p90) as JSON.
+prints what the device is (its system, read inside it), cold start (create → ready), screenshot, action and
+accessibility-tree latencies (p50/p90) as JSON.
 """
 
 from __future__ import annotations
@@ -14,10 +15,13 @@ import statistics
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any, Callable, Iterator
+from typing import TYPE_CHECKING, Any, Callable, Iterator
 
 from jarvis_pytest.devices import actions as A
 from jarvis_pytest.devices.desktop import DesktopDevice
+
+if TYPE_CHECKING:
+    from jarvis_pytest.devices.backend import Backend
 
 TEST_LABEL = "org.jarvis.test"
 
@@ -30,18 +34,25 @@ class Booted:
     url: str
     device: DesktopDevice
     ready_s: float  # create → ready
+    backend: "Backend | None" = None
+
+    def system(self) -> str:
+        """What the device is, read inside it (`Backend.describe`; "" when the backend cannot say)."""
+        describe = self.backend.describe if self.backend is not None else None
+        return describe(self.device) if describe else ""
 
 
 @contextmanager
 def boot(image: str = "jarvis/ubuntu:latest", platform: str = "ubuntu", timeout: float = 60.0,
-         client: Any = None) -> Iterator[Booted]:
-    """Create a container of `image` with its control port on 127.0.0.1, wait until ready; always removed."""
+         client: Any = None, backend: "Backend | None" = None) -> Iterator[Booted]:
+    """Create a container of `image` with its control port on 127.0.0.1 (ports and options of `backend`, else the
+    platform's default backend), wait until ready; always removed."""
     import docker
 
     from jarvis_pytest.devices.backend import backend_for
     from jarvis_pytest.errors import InfrastructureError
 
-    backend = backend_for(platform)
+    backend = backend or backend_for(platform)
     client = client or docker.from_env()
     t0 = time.perf_counter()
     container = client.containers.create(image, detach=True, labels={TEST_LABEL: "1"},
@@ -60,7 +71,7 @@ def boot(image: str = "jarvis/ubuntu:latest", platform: str = "ubuntu", timeout:
             raise InfrastructureError(f"{exc} (container {container.status}; last log lines:\n{logs})") from None
         ready_s = time.perf_counter() - t0
         device = DesktopDevice(url, platform=platform)
-        yield Booted(container, url, device, ready_s)
+        yield Booted(container, url, device, ready_s, backend)
     finally:
         if device is not None:
             device.close()
@@ -93,6 +104,7 @@ def measure(image: str = "jarvis/ubuntu:latest", boots: int = 5, samples: int = 
             d.screenshot()
             result = {
                 "image": image,
+                "device_os": b.system(),
                 "cold_start_ms": _stats(cold),
                 "screenshot_ms": _stats(_timed(d.screenshot, samples)),
                 "move_to_ms": _stats(_timed(lambda: d.act(A.MoveTo(x=700, y=500)), samples)),

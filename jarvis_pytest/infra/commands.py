@@ -2,12 +2,19 @@
 
 from __future__ import annotations
 
+import argparse
+
+from jarvis_pytest.errors import ConfigError
 from jarvis_pytest.infra import engine, images
 
 
 def _images_build(args) -> int:
+    if args.base is not None:  # gone: say so rather than argparse's "unrecognized arguments"
+        raise ConfigError(f"{args.base!r}: --base is gone (no other base was ever built or tested)", field="--base",
+                          fix=f"drop it: every image builds on the offline {images.BASE_DESCRIPTION} base, and the "
+                          "ubuntu platform's device is Debian 12 with XFCE")
     engine.ensure_engine()
-    built = images.build_all(args.only or None, base=args.base, force=args.force)
+    built = images.build_all(args.only or None, force=args.force)
     for name, tag in built.items():
         print(f"{name}\t{tag}")
     return 0
@@ -141,7 +148,7 @@ def register(sub) -> None:
     p = sub.add_parser("images", help="device images")
     isub = p.add_subparsers(dest="images_command", required=True)
     b = isub.add_parser("build", help="build the base and device images (only what changed)")
-    b.add_argument("--base", help="a registry base image to build on (e.g. ubuntu:24.04) instead of debootstrap")
+    b.add_argument("--base", help=argparse.SUPPRESS)  # removed; refused with the reason
     b.add_argument("--only", action="append", metavar="NAME", help="build only this image (repeatable)")
     b.add_argument("--force", action="store_true", help="rebuild even when up to date")
     b.set_defaults(func=_images_build)

@@ -1,4 +1,5 @@
-"""Device images: an offline Debian base (debootstrap, then `docker import`) and the images under `fixtures/images/`.
+"""Device images: an offline Debian 12 (bookworm) base (debootstrap, then `docker import`) and the images under
+`fixtures/images/`, all built on it (the ubuntu platform's device included: Debian 12 with XFCE).
 
 Each folder `fixtures/images/<name>/` holds a Dockerfile starting `ARG BASE` / `FROM ${BASE}` and an optional
 `image.json`: ``{"extras": {"<dest in context>": "<path in repo>"}, "wheels": ["pkg==1.2"], "python": "3.11"}``.
@@ -33,6 +34,7 @@ BASE_TAG = "jarvis/base:bookworm"
 DEBIAN_SUITE = "bookworm"
 DEBIAN_MIRROR = os.environ.get("JARVIS_DEBIAN_MIRROR", "http://deb.debian.org/debian")
 BASE_INCLUDE = ("ca-certificates", "locales", "tzdata")
+BASE_DESCRIPTION = f"Debian 12 ({DEBIAN_SUITE})"
 
 
 def image_tag(name: str) -> str:
@@ -118,19 +120,8 @@ def base_hash() -> str:
     return hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()
 
 
-def ensure_base(client, base: str | None = None, force: bool = False) -> str:
-    """Return the tag of the base image: `base` when given (pulled if absent), else the debootstrap one."""
-    if base:
-        try:
-            client.images.get(base)
-        except Exception:
-            _progress(f"pulling {base}")
-            try:
-                client.images.pull(base)
-            except Exception as exc:
-                raise InfrastructureError(f"cannot pull base image {base!r}: {exc}; omit --base to build an "
-                                          "offline Debian base with debootstrap") from exc
-        return base
+def ensure_base(client, force: bool = False) -> str:
+    """Return the tag of the base image, built with debootstrap when missing or out of date."""
     want = base_hash()
     if not force and _existing_label(client, BASE_TAG, HASH_LABEL) == want:
         return BASE_TAG
@@ -229,7 +220,7 @@ PREPARED = {"windows-real": "jarvis_pytest.devices.windows.real:prepare",
             "android": "jarvis_pytest.devices.android.image:build"}
 
 
-def build_all(names: list[str] | None = None, base: str | None = None, force: bool = False) -> dict[str, str]:
+def build_all(names: list[str] | None = None, force: bool = False) -> dict[str, str]:
     """Build the base and the named images (all buildable ones when None); returns name → tag. Prepared images
     (`PREPARED`) are made only when named."""
     import importlib
@@ -250,5 +241,5 @@ def build_all(names: list[str] | None = None, base: str | None = None, force: bo
     names = [n for n in names or [] if n not in PREPARED] if names else None
     if names == []:
         return prepared
-    base_tag = ensure_base(c, base, force=force)
+    base_tag = ensure_base(c, force=force)
     return prepared | {n: build_image(c, specs[n], base_tag, force=force) for n in (names or sorted(specs))}

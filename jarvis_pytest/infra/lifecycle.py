@@ -5,7 +5,8 @@ its own members unless egress is allowed: `infra/egress.py`; new, or one a finis
 `infra/networks.py`), starts the transfer drive on it under the alias `transfer` (devices reach it at
 `http://transfer:5244`; a finished task's drive left on the network is renewed instead: a fresh server on a wiped
 drive, checked empty) and one device per platform through its backend
-(`devices/backend.py`), all in parallel, and returns a `TaskEnvironment` once every device and the drive answer.
+(`devices/backend.py`; the run's, resolved once, or each platform's default), all in parallel, and returns a
+`TaskEnvironment` once every device and the drive answer, saying what each device really is (`device_os`).
 Ports are published on 127.0.0.1 only. A backend that mounts the drive's storage (`Backend.drive_mount`, e.g.
 the Windows `S:` drive) shares a volume of the task with the drive. A failed boot removes what it created and
 raises `InfrastructureError` with the failing container's logs. `TaskEnvironment.close()` removes it all (its
@@ -21,9 +22,10 @@ import threading
 import time
 from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
+from collections.abc import Mapping
 from typing import Any, Callable
 
-from jarvis_pytest.devices.backend import Backend, backend_for
+from jarvis_pytest.devices.backend import Backend, Backends
 from jarvis_pytest.devices.base import Device
 from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.infra import containers as ctr
@@ -63,6 +65,7 @@ class TaskEnvironment:
     urls: dict[str, str] = field(default_factory=dict)  # role → http://127.0.0.1:<port>
     run_id: str = ""
     backends: dict[str, str] = field(default_factory=dict)  # platform → backend label, e.g. "windows (wine)"
+    device_os: dict[str, str] = field(default_factory=dict)  # platform → what the device is, read inside it
     stand_ins: tuple[str, ...] = ()       # platforms whose backend is a stand-in for the real platform
     egress: bool = False
     volumes: list[Any] = field(default_factory=list)
@@ -141,17 +144,39 @@ def report_leftovers(problems: list[str], run_id: str) -> None:
               file=sys.stderr, flush=True)
 
 
+_DESCRIBED: dict[tuple[str, str], str] = {}  # (backend label, image id or device URL) → what the device is
+_DESCRIBED_LOCK = threading.Lock()
+
+
+def describe_device(backend: Backend, device: Device, key: str) -> str:
+    """What a booted device really is (`Backend.describe`: its system's name and version, read inside it), asked
+    once per backend and image (`key`) in this process; a device that cannot say is "unknown (why)" and is asked
+    again next time. Never raises: a task does not fail for it."""
+    with _DESCRIBED_LOCK:
+        known = _DESCRIBED.get((backend.label, key))
+    if known is not None:
+        return known
+    try:
+        text = backend.describe(device).strip()
+    except Exception as exc:
+        return f"unknown ({exc.__class__.__name__}: {str(exc)[:200]})"
+    with _DESCRIBED_LOCK:
+        _DESCRIBED[(backend.label, key)] = text
+    return text
+
+
 class Lifecycle:
     """Creates task environments for one run and worker.
 
-    `backends` chooses a backend per platform by name (e.g. {"windows": "wine"}); others get their default.
+    `backends` are the run's backends, resolved once (`devices.backend.resolve_backends`); without them each
+    platform gets its default backend, resolved on first use (tests, `jarvis bench`).
     `egress` opens the task networks (recorded in results); by default they are closed (`infra/egress.py`).
     `keep_networks` networks of finished tasks are kept for later ones (`infra/networks.py`), with their drives
     when the drive's flavour can be renewed; `close` removes them.
     """
 
     def __init__(self, run_id: str, worker: str = "main", limits: Limits | None = None,
-                 transfer: str | None = None, backends: dict[str, str] | None = None, egress: bool = False,
+                 transfer: str | None = None, backends: Mapping[str, Backend] | None = None, egress: bool = False,
                  docker_host: str | None = None, keep_networks: int = 0):
         from jarvis_pytest.infra.engine import client
 
@@ -161,7 +186,7 @@ class Lifecycle:
         self.limits = limits or Limits()
         self.egress = egress
         self.server: TransferServer = transfer_server(transfer)
-        self.choices = dict(backends or {})
+        self.backends = backends if isinstance(backends, Backends) else Backends(backends, open=backends is None)
         self._prefix = ctr.docker_name("jarvis", run_id, worker, secrets.token_hex(2))
         self._counter = 0
         self._lock = threading.Lock()
@@ -178,7 +203,7 @@ class Lifecycle:
         report_leftovers(self.networks.close(), self.run_id)
 
     def backend(self, platform: str) -> Backend:
-        return backend_for(platform, self.choices.get(platform))
+        return self.backends.backend(platform)
 
     def booted_memory_mb(self, platforms: tuple[str, ...] | list[str]) -> int:
         """About what a freshly booted environment of `platforms` holds: its devices and its drive."""
@@ -250,11 +275,9 @@ class Lifecycle:
         if not platforms or TRANSFER_ROLE in platforms:
             raise InfrastructureError(f"cannot boot platforms {list(platforms)}: give at least one device platform "
                                       f"(not {TRANSFER_ROLE!r}, which every task gets)")
-        backends = {p: self.backend(p) for p in platforms}   # unknown platforms fail here, before anything exists
-        for p, b in backends.items():
-            why = b.unavailable()
-            if why:
-                raise InfrastructureError(f"the {b.label} device cannot run on this machine: {why}")
+        # unknown platforms, and those with no backend here, fail now, before anything exists; whether a backend
+        # runs here was asked once, when the backends were resolved
+        backends = {p: self.backend(p) for p in platforms}
         base = self._next_name()
         boot_started = time.time()
         mounted = any(b.drive_mount for b in backends.values())  # a device mounts the drive's storage
@@ -360,9 +383,11 @@ class Lifecycle:
             role = c.labels.get(ctr.LABEL_PLATFORM) or TRANSFER_ROLE
             containers[role] = c
         image_ids = {role: c.attrs["Image"] for role, c in containers.items()}
+        device_os = {p: describe_device(b, devices[p], image_ids.get(p) or urls[p]) for p, b in backends.items()
+                     if b.describe is not None}
         return TaskEnvironment(devices=devices, transfer=clients[TRANSFER_ROLE], image_ids=image_ids,
                                network=network, containers=containers, urls=urls, run_id=self.run_id,
-                               backends={p: b.label for p, b in backends.items()},
+                               backends={p: b.label for p, b in backends.items()}, device_os=device_os,
                                stand_ins=tuple(p for p, b in backends.items() if b.stand_in),
                                egress=self.egress, volumes=volumes, _booted=list(booted.values()),
                                engine=engines.name(self.docker_host), worker=self.worker, boot_started=boot_started,

@@ -4,7 +4,7 @@ needs a real Windows, not Wine), is skipped — with the reason and what would r
 
 from __future__ import annotations
 
-from jarvis_pytest.devices.backend import Backend, backend_for, backends_of
+from jarvis_pytest.devices.backend import Backend, Backends, backends_of
 from jarvis_pytest.errors import JarvisError
 from jarvis_pytest.tasks.model import Task
 
@@ -14,14 +14,14 @@ def _how(platform: str) -> str:
     return "; ".join(hints) or f"a {platform} device backend"
 
 
-def skip_reason(task: Task, choices: dict[str, str]) -> str | None:
-    """Why this machine cannot run `task` with the chosen backends (None: it can)."""
+def skip_reason(task: Task, backends: Backends) -> str | None:
+    """Why this machine cannot run `task` with the run's backends (None: it can)."""
     chosen: dict[str, Backend] = {}
     for sub in task.formatted_subtasks:
         platform = sub.platform
         if platform not in chosen:
             try:
-                chosen[platform] = backend_for(platform, choices.get(platform))
+                chosen[platform] = backends.backend(platform)
             except JarvisError as exc:
                 return f"no {platform} device on this machine ({exc}); to run it: {_how(platform)}"
         backend = chosen[platform]

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from jarvis_pytest.devices.backend import ALIASES, BUILTIN, check_backend_options
 from jarvis_pytest.errors import ConfigError
 from jarvis_pytest.infra import engines
 from jarvis_pytest.infra.containers import PIDS_LIMIT, pids_limit
@@ -18,6 +19,8 @@ from jarvis_pytest.infra.pool import PREWARM_RESERVE_MB
 from jarvis_pytest.plugin.loop import LoopLimits
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
+BACKEND_OPTION = "--backend-option"
+BACKEND_OPTION_ALIASES = {"--android-serial": "android.serial", "--android-image": "android.image"}  # older flags
 
 
 def addoption(parser: pytest.Parser) -> None:
@@ -45,15 +48,15 @@ def addoption(parser: pytest.Parser) -> None:
     g.addoption("--device-cpus", default=None, help="CPU limit per device container, e.g. 1.5 (default: the "
                 "backend's own, else all cores but one on machines with more than two); the process limit is "
                 f"$JARVIS_DEVICE_PIDS (default {PIDS_LIMIT}, `none`: no limit)")
-    g.addoption("--windows-backend", default="auto", help="the Windows device: kvm (alias real: a Windows VM, "
-                "needs /dev/kvm and a prepared disk), wine (the offline stand-in) or auto (kvm where prepared, "
-                "else wine); results record which ran")
-    g.addoption("--android-backend", default="auto", help="the Android device: emulator (a prepared emulator "
-                "image, needs /dev/kvm), attach (a device you name with --android-serial) or auto")
-    g.addoption("--android-serial", default=None, help="adb serial of the device the attach backend uses (a phone, "
-                "redroid, a running emulator; host:port serials are connected); env JARVIS_ANDROID_SERIAL")
-    g.addoption("--android-image", default=None, help="the emulator backend's image (default jarvis/android:latest); "
-                "env JARVIS_ANDROID_IMAGE")
+    for platform, names in BUILTIN.items():  # one --PLATFORM-backend per platform, from the registry
+        aliases = "".join(f" (alias {a}: {n})" for (p, a), n in ALIASES.items() if p == platform)
+        g.addoption(f"--{platform}-backend", default="auto", help=f"the {platform} device: auto (the first of "
+                    f"{', '.join(names)} that can run here) or one of them{aliases}; results record which ran")
+    g.addoption(BACKEND_OPTION, action="append", default=[], metavar="PLATFORM.KEY=VALUE",
+                help="a setting of a device backend, e.g. windows.version=10 or android.serial=emulator-5554 "
+                "(repeatable; a wrong key lists the valid ones)")
+    for flag, key in BACKEND_OPTION_ALIASES.items():
+        g.addoption(flag, default=None, help=f"the same as {BACKEND_OPTION} {key}=VALUE")
     g.addoption("--allow-egress", action="store_true", help="let devices reach beyond their task network (the "
                 "host, the local network, the internet); off by default, and recorded in every result")
     g.addoption("--keep-devices", action="store_true", help="keep each task's devices after it ends, for debugging")
@@ -95,9 +98,8 @@ class JarvisOptions:
     qc: bool = False
     endpoints: dict[str, dict[str, str | None]] = field(default_factory=dict)
     allow_egress: bool = False
-    backends: dict[str, str] = field(default_factory=dict)  # platform → backend name (absent: the default)
-    android_serial: str | None = None
-    android_image: str | None = None
+    backends: dict[str, str] = field(default_factory=dict)  # platform → backend name asked for (absent: auto)
+    backend_options: dict[str, dict[str, str]] = field(default_factory=dict)  # platform → key → text (as given)
     docker_hosts: tuple[str, ...] = ()  # the run's Docker engines (`infra/engines.py`); empty: the local one
 
 
@@ -193,6 +195,8 @@ def read_options(config: pytest.Config) -> JarvisOptions:
     if resume is not None and results_dir is not None and resume.resolve() != results_dir.resolve():
         raise ConfigError("--resume and --results-dir name different folders", field="--results-dir",
                           fix="drop --results-dir: a resumed run writes into the run it resumes")
+    backends, backend_options = _backends(config), _backend_options(config)
+    check_backend_options(backends, backend_options)  # names, keys and values; whether they run here: at start
     return JarvisOptions(
         agent=agent, agent_options=pairs, limits=limits, results_dir=results_dir, resume=resume,
         device_memory=str(memory).strip() if memory is not None else None, device_cpus=cpus,
@@ -202,29 +206,42 @@ def read_options(config: pytest.Config) -> JarvisOptions:
         transfer=config.getoption("--transfer"), qc=config.getoption("--qc"),
         endpoints={"planner": _endpoint(config, "planner"), "grounder": _endpoint(config, "grounder")},
         allow_egress=config.getoption("--allow-egress"),
-        backends=_backends(config),
-        android_serial=config.getoption("--android-serial"), android_image=config.getoption("--android-image"),
+        backends=backends, backend_options=backend_options,
         docker_hosts=engines.configured(config.getoption("--docker-host"), config.rootpath),
     )
 
 
 def _backends(config: pytest.Config) -> dict[str, str]:
-    """Backend choices per platform, each checked against the registry now."""
-    from jarvis_pytest.devices.backend import ALIASES, BUILTIN
-
+    """The backend asked for per platform (`--PLATFORM-backend`; auto is left out), as given."""
     out = {}
     for platform in BUILTIN:
-        option = f"--{platform}-backend"
         try:
-            name = config.getoption(option)
+            name = config.getoption(f"--{platform}-backend")
         except ValueError:
             continue
-        if name in (None, "", "auto"):
-            continue
-        name = ALIASES.get((platform, name), name)
-        if name not in BUILTIN[platform]:
-            raise _bad(option, name, f"choose one of auto, {', '.join(BUILTIN[platform])}")
-        out[platform] = name
+        if name not in (None, "", "auto"):
+            out[platform] = name
+    return out
+
+
+def _backend_options(config: pytest.Config) -> dict[str, dict[str, str]]:
+    """`--backend-option PLATFORM.KEY=VALUE` (and the older flags that name one) as platform → key → text: a
+    malformed one, or one key given two values, is one ConfigError."""
+    pairs = [(BACKEND_OPTION, item) for item in config.getoption(BACKEND_OPTION) or []]
+    pairs += [(flag, f"{key}={config.getoption(flag)}") for flag, key in BACKEND_OPTION_ALIASES.items()
+              if config.getoption(flag) is not None]
+    out: dict[str, dict[str, str]] = {}
+    for flag, item in pairs:
+        name, sep, value = item.partition("=")
+        platform, dot, key = name.strip().partition(".")
+        if not sep or not dot or not platform or not key.strip():
+            raise _bad(flag, item, "write PLATFORM.KEY=VALUE, e.g. --backend-option windows.version=10")
+        given = out.setdefault(platform, {})
+        key = key.strip()
+        if given.get(key, value) != value:
+            raise ConfigError(f"{platform}.{key} is given twice ({given[key]!r} and {value!r})", field=flag,
+                              fix="give it once")
+        given[key] = value
     return out
 
 

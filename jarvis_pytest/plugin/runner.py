@@ -98,6 +98,7 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
             if platform in env.image_ids and not idle.known(platform, env.image_ids[platform]):
                 idle.remember(platform, env.image_ids[platform], device.observe().screenshot_png)
         result.backends = dict(getattr(env, "backends", {}))
+        result.device_os = dict(getattr(env, "device_os", {}))
         result.stand_ins = sorted(getattr(env, "stand_ins", ()))
         result.engine = getattr(env, "engine", "")
         result.worker = getattr(env, "worker", "")

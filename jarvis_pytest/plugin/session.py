@@ -16,7 +16,7 @@ import contextlib
 import signal
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 
@@ -32,8 +32,12 @@ from jarvis_pytest.plugin.availability import skip_reason
 from jarvis_pytest.results.writer import now_iso, read_result, task_dir, write_json_atomic
 from jarvis_pytest.tasks.model import Task
 
+if TYPE_CHECKING:
+    from jarvis_pytest.devices.backend import Backends
+
 PROPERTY = cases.PROPERTY
 PLUGIN_NAME = "jarvis-session"
+BACKENDS_INPUT = "jarvis_backends"  # the controller's choice of backends, handed to each xdist worker
 
 
 def get(config: pytest.Config) -> "JarvisSession":
@@ -88,7 +92,8 @@ def _sigterm_as_interrupt() -> None:
 class JarvisSession:
     """Options, run directory, agent and devices of this process, and the plugin hooks that use them."""
 
-    def __init__(self, config: pytest.Config, options: JarvisOptions, run_dir: Path, worker: str | None):
+    def __init__(self, config: pytest.Config, options: JarvisOptions, run_dir: Path, worker: str | None,
+                 decided: dict[str, dict[str, str]] | None = None):
         self.config = config
         self.options = options
         self.run_dir = run_dir
@@ -105,6 +110,19 @@ class JarvisSession:
         self.lock: RunLock | None = None  # the controller's hold on the results folder (`results/run_lock.py`)
         self.storage_failure: str | None = None  # why the results folder stopped taking files, once it did
         self._end_unwritten = False  # the end of the run could not be written (said once)
+        self._decided = decided  # an xdist worker: the backends its controller chose (`Backends.decided`)
+        self._backends: Backends | None = None
+
+    @property
+    def backends(self) -> "Backends":
+        """The run's backends, resolved once in this process from the options (a worker: as its controller chose
+        them, so every process runs the same ones); everything that boots, skips or lists images uses these."""
+        if self._backends is None:
+            from jarvis_pytest.devices.backend import resolve_backends
+
+            self._backends = resolve_backends(self.options.backends, self.options.backend_options,
+                                              decided=self._decided)
+        return self._backends
 
     # -- start-up (controller) ------------------------------------------------------------------------------
     def ensure_agent(self):
@@ -164,13 +182,8 @@ class JarvisSession:
                 raise pytest.UsageError(f"--agent {self.options.agent}: {exc}") from None
         if self.options.transfer not in (None, "copyparty"):
             _check_transfer_image(self.options.transfer)
-        from jarvis_pytest.plugin.environments import configure_backends
-
-        configure_backends(self.options)
-        for platform, name in self.options.backends.items():  # a backend asked for by name must be able to run
-            from jarvis_pytest.devices.backend import backend_for
-
-            backend = backend_for(platform, name)
+        for platform in self.options.backends:  # a backend asked for by name must be able to run
+            backend = self.backends[platform]
             why = backend.unavailable()
             if why:
                 raise ConfigError(f"the {backend.label} device cannot run on this machine: {why}",
@@ -184,6 +197,7 @@ class JarvisSession:
             _remove_run_resources(run_state.resource_id(self.run_dir), self.options.docker_hosts)  # (none of ours yet)
         self.state = run_state.RunState(self.run_dir, redacted_argv(sys.argv[1:]), resumed=not self.new_run)
         self.state.start(agent=agent.config(), agent_key=key, egress=self.options.allow_egress,
+                         backends=self.backends.record(),
                          options={"max_steps": self.options.limits.max_steps, "instances": self.options.instances},
                          engines=list(dict.fromkeys([*(self.state.meta.get("engines") or []),
                                                      *self.options.docker_hosts])))  # every session's, for cleanup
@@ -266,7 +280,7 @@ class JarvisSession:
         if tasks and (self.state is not None or not self.is_controller):
             run_state.merge_plan(self.run_dir, tasks)
         if tasks and self.options.docker_hosts:  # the images this process's tasks need, on its engine
-            _copy_images_to_engine(self.options, self.worker, tasks)
+            _copy_images_to_engine(self.options, self.backends, self.worker, tasks)
         if tasks and not self.is_controller:
             self._prewarm_first(tasks)
 
@@ -276,7 +290,7 @@ class JarvisSession:
         too. A wrong guess costs one environment that waits for a later task of its platforms (or the end).
         Not with --resume (kept results make the guess poor) nor when some workers may get no task at all."""
         workers = int(getattr(self.config, "workerinput", {}).get("workercount", 1))
-        runnable = [task_platforms(t) for t in tasks if skip_reason(t, self.options.backends) is None]
+        runnable = [task_platforms(t) for t in tasks if skip_reason(t, self.backends) is None]
         if not self.options.prewarm or self.options.resume is not None or len(runnable) < workers:
             return
         from collections import Counter
@@ -294,8 +308,8 @@ class JarvisSession:
 
             self.context = RunContext(
                 run_dir=self.run_dir, agent=self.ensure_agent(),
-                environments=make_environments(self.options, run_id=run_state.resource_id(self.run_dir),
-                                               worker=self.worker),
+                environments=make_environments(self.options, self.backends,
+                                               run_id=run_state.resource_id(self.run_dir), worker=self.worker),
                 limits=self.options.limits, keep_devices=self.options.keep_devices, on_keep=_print_kept,
                 qc=self.options.qc, egress=self.options.allow_egress,
             )
@@ -330,7 +344,7 @@ class JarvisSession:
     def _run_case(self, request: pytest.FixtureRequest, case: cases.TaskCase) -> TaskResult:
         agent = self.ensure_agent()
         task = case.task
-        reason = skip_reason(task, self.options.backends)
+        reason = skip_reason(task, self.backends)
         if reason is not None:  # a device this machine lacks: skipped with the reason, counted apart, never failed
             result = TaskResult(task_id=task.id, category=task.category,
                                 platforms=list(task_platforms(task)), instruction=task.instruction,
@@ -443,15 +457,19 @@ class JarvisSession:
 
 
 class _XdistHooks:
-    """Registered only when xdist is active: hand the controller's run directory to each worker; stop a run whose
-    workers collected tasks when no agent was chosen (a worker's usage error would be xdist's INTERNALERROR)."""
+    """Registered only when xdist is active: hand the controller's run directory and, in a run, its backends to
+    each worker; stop a run whose workers collected tasks when no agent was chosen (a worker's usage error would be
+    xdist's INTERNALERROR)."""
 
-    def __init__(self, run_dir: Path, needs_agent: bool):
-        self.run_dir = run_dir
+    def __init__(self, session: JarvisSession, needs_agent: bool):
+        self.session = session
+        self.run_dir = session.run_dir
         self.needs_agent = needs_agent
 
     def pytest_configure_node(self, node) -> None:
         node.workerinput["jarvis_run_dir"] = str(self.run_dir)
+        if self.session.state is not None:  # a run that started: its workers run the backends it chose
+            node.workerinput[BACKENDS_INPUT] = self.session.backends.decided()
 
     def pytest_xdist_node_collection_finished(self, node, ids: list[str]) -> None:
         if self.needs_agent and any(f"::{name}[" in i for i in ids for name in TASK_TESTS):
@@ -489,7 +507,7 @@ def _check_engines(hosts: tuple[str, ...]) -> None:
         raise pytest.UsageError(f"--docker-host: {exc}") from None
 
 
-def _copy_images_to_engine(options: JarvisOptions, worker: str, tasks: list[Task]) -> None:
+def _copy_images_to_engine(options: JarvisOptions, backends: "Backends", worker: str, tasks: list[Task]) -> None:
     """Copy the images of the selected tasks this machine can run to this process's engine, where missing (one
     copier per engine at a time: the workers sharing an engine wait for the first)."""
     import hashlib
@@ -497,15 +515,14 @@ def _copy_images_to_engine(options: JarvisOptions, worker: str, tasks: list[Task
 
     from filelock import FileLock
 
-    from jarvis_pytest.devices.backend import backend_for
     from jarvis_pytest.infra import engines
     from jarvis_pytest.infra.transfer_server import transfer_server
 
     host = engines.for_worker(options.docker_hosts, worker)
     images = {transfer_server(options.transfer).image}
     for task in tasks:
-        if skip_reason(task, options.backends) is None:
-            images |= {backend_for(p, options.backends.get(p)).image_ref for p in task_platforms(task)}
+        if skip_reason(task, backends) is None:
+            images |= {backends[p].image_ref for p in task_platforms(task)}
     lock = Path(tempfile.gettempdir()) / f"jarvis-engine-{hashlib.sha256(str(host).encode()).hexdigest()[:12]}.lock"
     try:
         with FileLock(str(lock)):
@@ -553,7 +570,8 @@ def configure(config: pytest.Config) -> None:
         raise pytest.UsageError(str(exc)) from None
     workerinput = getattr(config, "workerinput", None)
     if workerinput is not None:
-        session = JarvisSession(config, options, Path(workerinput["jarvis_run_dir"]), workerinput.get("workerid", "gw?"))
+        session = JarvisSession(config, options, Path(workerinput["jarvis_run_dir"]), workerinput.get("workerid", "gw?"),
+                                decided=workerinput.get(BACKENDS_INPUT))
     else:
         given = options.resume or options.results_dir or REPO_ROOT / "reports" / new_run_id()
         try:
@@ -571,7 +589,7 @@ def configure(config: pytest.Config) -> None:
     if not session.is_controller:
         return
     if config.pluginmanager.hasplugin("xdist"):
-        config.pluginmanager.register(_XdistHooks(session.run_dir, not options.agent and not config.option.collectonly),
+        config.pluginmanager.register(_XdistHooks(session, not options.agent and not config.option.collectonly),
                                       "jarvis-xdist")
     if options.agent and not config.option.collectonly:
         try:

@@ -120,6 +120,7 @@ class Summary(BaseModel):
     failure_modes: dict[str, dict[str, int]] = Field(default_factory=dict)  # category → mode → failed tasks
     stand_ins: dict[str, list[str]] = Field(default_factory=dict)  # platform → stand-in backends that ran it
     stand_in_categories: list[str] = Field(default_factory=list)  # atomic/sw/mi/md with a stand-in result counted
+    devices: dict[str, list[str]] = Field(default_factory=dict)  # platform → what its devices really were
     tasks: int = 0  # tasks counted in the rates
     rerun_after_device_fault: int = 0  # counted tasks whose devices faulted once and that ran again on fresh ones
     warnings: list[str] = Field(default_factory=list)  # inconsistent or unexpected results
@@ -208,6 +209,21 @@ def _stand_ins(results: list[TaskResult]) -> dict[str, list[str]]:
     return {p: sorted(v) for p, v in sorted(found.items())}
 
 
+def _devices(results: list[TaskResult]) -> dict[str, list[str]]:
+    """Platform → what its devices really were (`TaskResult.device_os`, read inside them), over every result."""
+    found: dict[str, set[str]] = {}
+    for r in results:
+        for p, system in r.device_os.items():
+            found.setdefault(p, set()).add(system)
+    return {p: sorted(v) for p, v in sorted(found.items())}
+
+
+def _devices_line(s: Summary) -> str:
+    """E.g. `ubuntu platform: Debian GNU/Linux 12 (bookworm), XFCE 4.18; windows platform: ...` (the platforms
+    keep the paper's names; this says what ran under each)."""
+    return "; ".join(f"{p} platform: {' / '.join(v)}" for p, v in s.devices.items())
+
+
 def _dedupe(results: Sequence[TaskResult], warnings: list[str]) -> list[TaskResult]:
     """One result per task id, sorted by id. A duplicated id keeps the most finished result, whatever the order:
     status rank, then latest `finished`, then the larger JSON text."""
@@ -294,6 +310,7 @@ def rollup(results: Sequence[TaskResult], *, seed: int = 0, n_boot: int = 2000,
         by_devices=_by_devices(composed_all), failure_modes=_failure_modes(done),
         stand_ins=_stand_ins(everything),
         stand_in_categories=sorted({r.category.lower() for r in everything if r.stand_ins}),
+        devices=_devices(ordered),
         tasks=len(everything), warnings=sorted(warnings),
         rerun_after_device_fault=sum(1 for r in everything if r.device_faults),
         seed=seed, n_boot=n_boot, level=LEVEL)
@@ -374,6 +391,8 @@ def render_markdown(s: Summary) -> str:
            f"Tasks counted: {s.tasks}. Not counted: errors {sum(s.errors.values())}, timeouts "
            f"{sum(s.timeouts.values())}, skipped for want of a device {sum(s.skipped.values())}, unfinished "
            f"{sum(s.unfinished.values())}, never ran {sum(s.not_run.values())}.", ""]
+    if s.devices:
+        out += [f"**Devices:** {_devices_line(s)}.", ""]
     if s.stand_ins:
         out += [f"**Stand-in devices:** {_stand_in_note(s)} Cells marked * include results from a stand-in: "
                 "they are not comparable with results from the real platform.", ""]
@@ -440,6 +459,8 @@ def render_terminal(s: Summary) -> str:
              row("  TSR", atomic),
              row("multi", [*(_LABEL[c] + _cat_star(s, c) for c in COMPOSED), "Overall" + _cat_star(s, "composed")]),
              row("  TSR", tsr), row("  SSR", ssr)]
+    if s.devices:
+        lines.append(f"devices: {_devices_line(s)}")
     if s.stand_ins:
         lines.append(f"* includes results from a stand-in device ({_stand_in_note(s)[:-1]}): not comparable with "
                      "the real platform")

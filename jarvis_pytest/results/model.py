@@ -121,6 +121,9 @@ class TaskResult(BaseModel):
     egress: bool = False  # the devices could reach beyond their task network (--allow-egress)
     backends: dict[str, str] = Field(default_factory=dict)  # platform → the backend that ran it: "windows (wine)"
     stand_ins: list[str] = Field(default_factory=list)  # platforms that ran on a stand-in (Wine for Windows)
+    # platform → what its device really is, read inside it: "Debian GNU/Linux 12 (bookworm), XFCE 4.18" for the
+    # platform the paper calls ubuntu (`Backend.describe`)
+    device_os: dict[str, str] = Field(default_factory=dict)
     engine: str = ""  # the Docker engine the task's devices ran on: "local" or the --docker-host URL
     worker: str = ""  # the xdist worker that ran it ("gw0", …; "main" without xdist)
     edges: list[tuple[int, int]] = Field(default_factory=list)  # (upstream, downstream) subtask indices

@@ -1,7 +1,7 @@
 """The Android backends: `emulator` (Google's emulator in a container with /dev/kvm) and `attach` (any adb serial).
 
-emulator: one container per task from the prepared image (`image.py`; default `jarvis/android:latest`, or
-`configure(image=...)` / $JARVIS_ANDROID_IMAGE), running API 33 google_apis x86_64 headless (`-no-window -no-audio
+emulator: one container per task from the prepared image (`image.py`; option `android.image`, default
+`jarvis/android:latest`, or $JARVIS_ANDROID_IMAGE), running API 33 google_apis x86_64 headless (`-no-window -no-audio
 -no-boot-anim -gpu swiftshader_indirect`) from its golden snapshot with `-read-only -no-snapshot-save`. The
 emulator's adb port listens on the container's loopback; `socat` offers it on port 5556, which is published on
 127.0.0.1 only, and our adb server `adb connect`s to it. The container joins the task network; the guest's
@@ -9,7 +9,7 @@ traffic leaves through the emulator's user-mode NAT (10.0.2.x) from the containe
 container reaches: the drive as `transfer:5244` (the guest's DNS 10.0.2.3 forwards to the container's resolver),
 and as `10.0.2.2:5244` (the container's loopback, where `socat` relays to `transfer:5244`).
 
-attach: a device the user names by serial (`configure(serial=...)` / $JARVIS_ANDROID_SERIAL): a phone, redroid,
+attach: a device the user names by serial (option `android.serial`, or $JARVIS_ANDROID_SERIAL): a phone, redroid,
 an emulator already running. Nothing is created or removed; a TCP serial (`host:port`) is `adb connect`ed; one
 task at a time holds the device (a lock per serial, across processes); the task's set-up resets the apps it uses.
 """
@@ -22,12 +22,13 @@ import re
 import tempfile
 import threading
 import time
-from typing import TYPE_CHECKING
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
 
 from jarvis_pytest.devices.android.adb import Adb, adb_binary, is_tcp_serial
 from jarvis_pytest.devices.android.device import AdbDevice
 from jarvis_pytest.devices.android.image import IMAGE_NAME, image_state, kvm_problem
-from jarvis_pytest.devices.backend import Backend
+from jarvis_pytest.devices.backend import Backend, BackendOption, token
 from jarvis_pytest.errors import InfrastructureError
 
 if TYPE_CHECKING:
@@ -37,27 +38,10 @@ SERIAL_ENV = "JARVIS_ANDROID_SERIAL"
 IMAGE_ENV = "JARVIS_ANDROID_IMAGE"
 ADB_FORWARD_PORT = 5556          # in the emulator container: socat → the emulator's adb port 127.0.0.1:5555
 ATTACH_WAIT = 7200.0             # seconds a task waits for an attached device another task holds
-_config: dict[str, str | None] = {"serial": None, "image": None}
+DEFAULT_IMAGE = f"jarvis/{IMAGE_NAME}:latest"  # `infra.images.image_tag(IMAGE_NAME)`
+SERIAL_HINT = "--backend-option android.serial=SERIAL (or --android-serial SERIAL)"
 _held: dict[str, int] = {}       # serial → fd of its lock file, while a task holds the device
 _held_lock = threading.Lock()
-
-
-def configure(serial: str | None = None, image: str | None = None) -> None:
-    """Set the attach serial (`--android-serial`) and the emulator image (`--android-image`)."""
-    if serial is not None:
-        _config["serial"] = serial or None
-    if image is not None:
-        _config["image"] = image or None
-
-
-def configured_serial() -> str | None:
-    return _config["serial"] or os.environ.get(SERIAL_ENV) or None
-
-
-def configured_image() -> str:
-    from jarvis_pytest.infra.images import image_tag
-
-    return _config["image"] or os.environ.get(IMAGE_ENV) or image_tag(IMAGE_NAME)
 
 
 def serial_of(url: str) -> str:
@@ -97,12 +81,11 @@ def _adb_problem() -> str | None:
     return None
 
 
-def emulator_unavailable() -> str | None:
-    """Why the emulator backend cannot run here (None: it can)."""
+def emulator_unavailable(ref: str = DEFAULT_IMAGE) -> str | None:
+    """Why the emulator backend with image `ref` cannot run here (None: it can)."""
     problem = _adb_problem() or kvm_problem()
     if problem:
         return problem
-    ref = configured_image()
     try:
         from jarvis_pytest.infra.engine import client
 
@@ -111,27 +94,31 @@ def emulator_unavailable() -> str | None:
         return str(exc)
     if missing:
         return (f"{missing}: no /dev/kvm-capable Android emulator image prepared; run `jarvis images build --only "
-                f"android` on a machine with KVM and internet (dl.google.com), or name one with --android-image")
+                f"android` on a machine with KVM and internet (dl.google.com), or name one with --backend-option android.image=IMAGE")
     return None
 
 
-def attach_unavailable() -> str | None:
-    """Why the attach backend cannot run here (None: it can)."""
+def attach_unavailable(serial: str | None = None) -> str | None:
+    """Why the attach backend with `serial` cannot run here (None: it can)."""
     problem = _adb_problem()
     if problem:
         return problem
-    if not configured_serial():
-        return ("no adb serial given: --android-serial SERIAL (a phone, redroid or a running emulator; "
-                "`adb devices` lists them; host:port serials are `adb connect`ed)")
+    if not serial:
+        return (f"no adb serial given: {SERIAL_HINT} (a phone, redroid or a running emulator; `adb devices` lists "
+                "them; host:port serials are `adb connect`ed)")
     return None
+
+
+def describe(device: AdbDevice) -> str:
+    """What the device is, as Android says: e.g. `Android 13 (API 33), sdk_gphone64_x86_64`."""
+    out = device.run("getprop ro.build.version.release; getprop ro.build.version.sdk; getprop ro.product.model",
+                     timeout=20).stdout.splitlines()
+    release, sdk, model = (out + ["", "", ""])[:3]
+    return f"Android {release.strip() or '?'} (API {sdk.strip() or '?'}), {model.strip() or 'unknown model'}"
 
 
 class EmulatorBackend(Backend):
     """The emulator in a container of the prepared image (the default container boot, then adb)."""
-
-    @property
-    def image_ref(self) -> str:
-        return configured_image()
 
     def boot(self, request: "BootRequest") -> "BootedDevice":
         booted = super().boot(request)          # container on the task network, waited for with `wait_ready`
@@ -155,12 +142,12 @@ class AttachBackend(Backend):
         """Why `sub` cannot run on the attached device: an app it launches is not installed there (`apps.py`)."""
         from jarvis_pytest.devices.android.apps import attach_skip_reason
 
-        return attach_skip_reason(configured_serial(), sub)
+        return attach_skip_reason(self.values.get("serial"), sub)
 
     def boot(self, request: "BootRequest") -> "BootedDevice":
         from jarvis_pytest.infra.containers import BootedDevice
 
-        serial = configured_serial()
+        serial = self.values.get("serial")
         if not serial:
             raise InfrastructureError(attach_unavailable() or "no adb serial given")
         _acquire(serial, request.stop, max(request.ready_timeout, ATTACH_WAIT))
@@ -219,10 +206,20 @@ def _release(serial: str) -> None:
             os.close(fd)
 
 
+def _emulator(values: Mapping[str, Any]) -> dict[str, Any]:
+    image = values["image"]
+    return {"image": image, "unavailable": lambda: emulator_unavailable(image)}
+
+
+def _attach(values: Mapping[str, Any]) -> dict[str, Any]:
+    serial = values["serial"]
+    return {"unavailable": lambda: attach_unavailable(serial)}
+
+
 EMULATOR = EmulatorBackend(
     platform="android",
     name="emulator",
-    image=IMAGE_NAME,
+    image=DEFAULT_IMAGE,
     connect=connect,
     wait_ready=wait_ready,
     port=ADB_FORWARD_PORT,
@@ -232,9 +229,12 @@ EMULATOR = EmulatorBackend(
     memory="6g",
     booted_memory_mb=2048 + 512,  # the AVD's RAM (hw.ramSize), and the emulator
     cpus=None,
-    unavailable=emulator_unavailable,
     how_to_run=("on a machine with /dev/kvm and internet: JARVIS_ANDROID_DOWNLOAD=1 jarvis images build --only "
                 "android, then run with --android-backend emulator"),
+    describe=describe,
+    options=(BackendOption("image", "the prepared emulator image to run (a local tag or a registry reference)",
+                           default=DEFAULT_IMAGE, parse=token, env=IMAGE_ENV, example="myregistry/android:33"),),
+    derive=_emulator,
 )
 
 ATTACH = AttachBackend(
@@ -249,7 +249,9 @@ ATTACH = AttachBackend(
     memory=None,
     booted_memory_mb=0,  # the device exists already: nothing boots here
     cpus=None,
-    unavailable=attach_unavailable,
-    how_to_run="connect a device (`adb devices` lists it), then run with --android-backend attach "
-               "--android-serial SERIAL",
+    how_to_run=f"connect a device (`adb devices` lists it), then run with --android-backend attach {SERIAL_HINT}",
+    describe=describe,
+    options=(BackendOption("serial", "the adb serial of the device to use (`adb devices` lists them; host:port "
+                           "serials are connected)", parse=token, env=SERIAL_ENV, example="emulator-5554"),),
+    derive=_attach,
 )
