@@ -68,7 +68,7 @@ def test_qc_composed_catches_every_broken_chain_at_the_right_subtask(device_imag
     proc = subprocess.run([sys.executable, "-m", "jarvis_pytest.cli", "qc", "--composed", "-k", "md-0132",
                            "--results-dir", str(tmp_path)], cwd=REPO, capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
-    assert "| md-0132 | fail | 5/5 caught | pass | ok |" in proc.stdout, proc.stdout[-2000:]
+    assert "| md-0132 | fail | 5/5 caught | pass | - | ok |" in proc.stdout, proc.stdout[-2000:]
     (result,) = load_results(tmp_path)[0]
     kinds = {n.kind: n for n in result.qc_negatives}
     assert set(kinds) == {f"chain:{k}" for k in ("made_up", "substituted", "too_early", "unplaced",

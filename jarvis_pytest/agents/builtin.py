@@ -1,4 +1,5 @@
-"""The built-in agents: `oracle` (the tasks' reference solutions), `noop` (DONE at once), `replay` (a trajectory)."""
+"""The built-in agents: `oracle` (the tasks' reference solutions), `gui-oracle` (their GUI solutions, actions
+only), `noop` (DONE at once), `replay` (a trajectory)."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from jarvis_pytest.agents.gui_oracle import GuiOracleAgent
 from jarvis_pytest.agents.oracle import OracleAgent
 from jarvis_pytest.agents.protocol import AgentStep, HistoryEntry, TaskContext
 from jarvis_pytest.devices.actions import Done, parse_action
@@ -73,5 +75,6 @@ class ReplayAgent:
         return {"name": self.name, "file": str(self.path)}
 
 
-#: `oracle` is told the solution by `oracle.brief`, which recognises its class object, not this name.
-BUILTIN_AGENTS = {"oracle": OracleAgent, "noop": NoopAgent, "replay": ReplayAgent}
+#: `oracle` and `gui-oracle` are told their solutions by `oracle.brief`, which recognises their class objects, not
+#: these names.
+BUILTIN_AGENTS = {"oracle": OracleAgent, "gui-oracle": GuiOracleAgent, "noop": NoopAgent, "replay": ReplayAgent}

@@ -279,11 +279,19 @@ class OracleAgent:
         return {"name": self.name}
 
 
-def brief(agent: Any, subtasks: Sequence[Any], devices: dict[str, Device]) -> bool:
+def brief(agent: Any, subtasks: Sequence[Any], devices: dict[str, Device],
+          backends: dict[str, str] | None = None) -> bool:
     """Hand the task's solution (its formatted subtasks, in execution order) and its devices to `agent` if it is
     the built-in oracle: an instance of exactly `OracleAgent`, this module's class object (no name, attribute,
-    subclass or copy of it qualifies). Call it after `agent.reset`. Whether `agent` was briefed; any other agent
-    is handed nothing."""
+    subclass or copy of it qualifies). The built-in GUI oracle (exactly `gui_oracle.GuiOracleAgent`) is handed the
+    subtasks' GUI solutions and a view of the devices' accessibility trees instead, never the devices (`backends`:
+    platform → the label of the backend that runs it, for its `gui_infeasible`). Call it after `agent.reset`.
+    Whether `agent` was briefed; any other agent is handed nothing."""
+    from jarvis_pytest.agents.gui_oracle import GuiOracleAgent, brief_gui
+
+    if type(agent) is GuiOracleAgent:
+        brief_gui(agent, subtasks, devices, backends)
+        return True
     if type(agent) is not OracleAgent:
         return False
     agent.queue = oracle_plan(subtasks)

@@ -132,8 +132,8 @@ def failure_message(verdicts: list[SubtaskVerdict], end_reason: str, steps: int)
 
 
 def qc_message(result: TaskResult) -> str:
-    """The quality-gate message: evaluators that already pass before the oracle ran, and subtasks the oracle
-    failed."""
+    """The quality-gate message: evaluators that already pass before the oracle ran, negatives the evaluators
+    accept, GUI solutions that do not solve their subtask, and subtasks the oracle failed."""
     lines = []
     for v in result.qc_initial or []:
         held = [e for e in v.evaluators if e.passed]
@@ -141,6 +141,8 @@ def qc_message(result: TaskResult) -> str:
             lines.append(f"subtask {v.index} {v.template}: evaluators pass on the untouched device "
                          f"({'; '.join(f'{e.func}: {e.reason}' for e in held)})")
     lines += [why for n in result.qc_negatives or [] if (why := negative_violation(n))]
+    lines += [f"subtask {g.subtask} {g.template}: the GUI solution does not solve it: {g.reason}"
+              for g in result.qc_gui or [] if g.state == "failed"]
     if not all(s.passed for s in result.subtasks) or not result.subtasks:
         lines.append("the oracle did not solve the task: "
                      + failure_message(result.subtasks, result.end_reason, result.steps))

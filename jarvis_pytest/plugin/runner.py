@@ -67,6 +67,8 @@ def _passed(result: TaskResult) -> bool:
         passed = passed and not any(e.passed for s in result.qc_initial for e in s.evaluators)
     if result.qc_negatives is not None:
         passed = passed and not any(n.passed or n.error for n in result.qc_negatives)
+    if result.qc_gui is not None:
+        passed = passed and not any(g.state == "failed" for g in result.qc_gui)
     return passed
 
 
@@ -117,7 +119,7 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
                     "flavour": getattr(env.transfer, "flavour", "copyparty")}
         failed_reset = begin(ctx.agent, TaskContext(task_id=task.id, instruction=task.instruction,
                                                     platforms=platforms, transfer=transfer), ctx.limits)
-        brief_oracle(ctx.agent, subtasks, env.devices)  # the solution and devices: to the built-in oracle only
+        brief_oracle(ctx.agent, subtasks, env.devices, result.backends)  # to the built-in oracles only
         if failed_reset is None:
             unused = {p: idle_observation(p) for p in PLATFORMS if p not in env.devices}
             outcome = run_loop(ctx.agent, env.devices, unused, recorder, ctx.limits, progress)
@@ -139,6 +141,10 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
 
             env.close()
             result.qc_negatives = run_negatives(subtasks, platforms, ctx.environments)
+            from jarvis_pytest.plugin.gui_check import GUI_FOLDER, run_gui_check
+
+            result.qc_gui = run_gui_check(task, platforms, ctx.environments, result.backends, ctx.limits,
+                                          recorder.dir / GUI_FOLDER)
         elif ctx.qc and any(is_transfer(s.template) for s in subtasks):  # a composed task's broken chains
             from jarvis_pytest.plugin.chain_negatives import run_chain_negatives
 

@@ -59,6 +59,23 @@ class NegativeVerdict(BaseModel):
     step_errors: list[str] = Field(default_factory=list)
 
 
+class GuiCheck(BaseModel):
+    """`jarvis qc`'s fourth check of one subtask: the task passes after its GUI solution (`gui-oracle`), run on
+    fresh devices. `state`: `passed`/`failed`, `infeasible` (the template says the GUI cannot solve it on `backend`:
+    `reason`), or `none` (no GUI solution yet)."""
+
+    subtask: int
+    template: str
+    app: str = ""
+    backend: str = ""
+    state: Literal["passed", "failed", "infeasible", "none"]
+    reason: str = ""  # why it failed, or why the GUI cannot solve it
+    steps: int = 0
+    verdicts: list[SubtaskVerdict] = Field(default_factory=list)
+    device_faults: list[str] = Field(default_factory=list)
+    seconds: float = 0.0
+
+
 # The most characters of a model's text a step keeps (`StepRecord.raw_output`, `reasoning`): a model that streams
 # megabytes would otherwise write them into traj.jsonl at every step (and the dashboard would send them to the
 # browser). The first CUT_TEXT_CHARS are kept and `cut` says how long the text was.
@@ -115,6 +132,7 @@ class TaskResult(BaseModel):
     subtasks: list[SubtaskVerdict] = Field(default_factory=list)
     qc_initial: list[SubtaskVerdict] | None = None  # --qc: verdicts on the freshly set-up devices (must all fail)
     qc_negatives: list[NegativeVerdict] | None = None  # --qc: verdicts on each near-miss wrong state (must fail)
+    qc_gui: list[GuiCheck] | None = None  # --qc: the task after its GUI solution, per subtask (atomic tasks)
     steps: int = 0
     end_reason: str = ""  # done | fail | max_steps | timeout | error
     error: str | None = None  # infrastructure error text when status == "error"; the reason when "skipped"

@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING, Any, Mapping
 from pydantic import TypeAdapter
 
 from jarvis_pytest.errors import ConfigError
-from jarvis_pytest.tasks.model import (BoundSlot, EvaluatorSpec, InputSlot, Negative, Scalar, SetupStep, SolutionStep,
-                                       Subtask, Task, TaskTemplate)
+from jarvis_pytest.tasks.model import (BoundSlot, EvaluatorSpec, GuiStep, InputSlot, Negative, Scalar, SetupStep,
+                                       SolutionStep, Subtask, Task, TaskTemplate)
 from jarvis_pytest.tasks.templating import Where, render_data, render_text
 
 if TYPE_CHECKING:
@@ -71,12 +71,14 @@ def _render_steps(steps: list, model: type | TypeAdapter, values: Mapping[str, S
 
 
 def materialise(template: TaskTemplate, values: Mapping[str, Scalar], *, fed: Mapping[str, BoundSlot] | None = None,
-                source: object = None) -> Subtask:
+                source: object = None, gui: bool = False) -> Subtask:
     """Bind the inputs (sampled `values`, overridden by `fed` slots from upstream subtasks) and render the rest.
 
     Setup steps that `provide` a fed input are dropped: the upstream subtask produces that input; so are baseline
     paths that are a fed input's value (what an upstream subtask makes is not known at set-up). Negatives are
-    rendered for atomic instances only (nothing is fed): they are the quality gate's, not a composed task's.
+    rendered for atomic instances only (nothing is fed): they are the quality gate's, not a composed task's. The
+    GUI solution and where it is infeasible are rendered only with `gui` (atomic instances: composed tasks have no
+    GUI solutions yet).
     """
     fed = dict(fed or {})
     where = Where(source, template.id)
@@ -122,6 +124,10 @@ def materialise(template: TaskTemplate, values: Mapping[str, Scalar], *, fed: Ma
         config=config,
         evaluate=_render_steps(template.evaluate, EvaluatorSpec, every, where.at("evaluate")),
         solution=_render_steps(template.solution, SolutionStep, every, where.at("solution")),
+        gui_solution=(_render_steps(template.gui_solution, GuiStep, every, where.at("gui_solution")) or None)
+        if gui else None,
+        gui_infeasible=({k: render_text(v, every, where.at(f"gui_infeasible.{k}"))
+                         for k, v in sorted(template.gui_infeasible.items())} or None) if gui else None,
         negatives=negatives,
         baseline=[p for p in baseline if p not in fed_values],
         consumes=dict(sorted(template.consumes.items())),
@@ -166,7 +172,7 @@ def instance_id(template_id: str, seed: int) -> str:
 def atomic_task(template: TaskTemplate, seed: int, *, source: object = None) -> Task:
     """The atomic task (a graph of one subtask) of `template` with input values drawn for `seed`."""
     rng = random.Random(f"{template.id}#seed{seed}")
-    sub = materialise(template, sample_inputs(template, rng), source=source)
+    sub = materialise(template, sample_inputs(template, rng), source=source, gui=True)
     return Task(id=instance_id(template.id, seed), category="atomic", devices=[template.platform],
                 instruction=sub.instruction, edges=[], formatted_subtasks=[sub])
 

@@ -66,8 +66,18 @@ class Library:
     def digest(self) -> str:
         """A short content hash of the templates and the type system (for dataset provenance)."""
         blob = json.dumps({"types": self.types.to_json(),
-                           "templates": [t.model_dump(mode="json") for t in self.templates]}, sort_keys=True)
+                           "templates": [_digested(t) for t in self.templates]}, sort_keys=True)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def _digested(tpl: TaskTemplate) -> dict[str, Any]:
+    """What a template's digest covers: all of it, less GUI solution fields it leaves empty (so adding the fields
+    changed no library's digest)."""
+    data = tpl.model_dump(mode="json", by_alias=True)
+    for key in ("gui_solution", "gui_infeasible"):
+        if not data[key]:
+            del data[key]
+    return data
 
 
 # -- reading files -------------------------------------------------------------------------------------------
@@ -95,8 +105,9 @@ def pydantic_error(exc: ValidationError, *, path: object, task: str | None, pref
     if kind == "missing":
         return ConfigError(f"{head}required field is missing", path=path, field=where, fix="add it (see `jarvis schema`)")
     message = str(err["msg"]).removeprefix("Value error, ")
+    cause = (err.get("ctx") or {}).get("error")
     return ConfigError(f"{head}{message}", path=path, field=where or None,
-                       fix="see `jarvis schema` for the template format")
+                       fix=getattr(cause, "fix", None) or "see `jarvis schema` for the template format")
 
 
 def read_template_file(path: Path) -> list[TaskTemplate]:
@@ -197,10 +208,11 @@ def validate_template(tpl: TaskTemplate, types: TypeSystem, *, path: object = No
                             "output values may use input slots only")
     slots = {**tpl.inputs, **tpl.outputs}
     _check_placeholders(tpl.instruction, slots, types, tpl, where.at("instruction"))
-    for section in ("config", "evaluate", "solution", "negatives"):
+    for section in ("config", "evaluate", "solution", "negatives", "gui_solution"):
         data = [item.model_dump(mode="json", exclude_none=True) for item in getattr(tpl, section)]
         for text, loc in walk_strings(data, where.at(section)):
             _check_placeholders(text, slots, types, tpl, loc)
+    _check_gui_infeasible(tpl, slots, types, where)
     for i, text in enumerate(tpl.baseline):
         _check_placeholders(text, slots, types, tpl, where.at(f"baseline[{i}]"))
     if tpl.window:
@@ -231,7 +243,22 @@ def validate_template(tpl: TaskTemplate, types: TypeSystem, *, path: object = No
             if problem:
                 raise fail(f"config[{i}].fixture", problem, "put the file under fixtures/files/ and name it "
                            "relative to that folder")
-    materialise(tpl, sample_inputs(tpl, random.Random(0)), source=path)
+    materialise(tpl, sample_inputs(tpl, random.Random(0)), source=path, gui=True)
+
+
+def _check_gui_infeasible(tpl: TaskTemplate, slots: dict[str, Any], types: TypeSystem, where: Where) -> None:
+    """`gui_infeasible` names backends of the template's platform, each with a reason."""
+    from jarvis_pytest.devices.backend import ALIASES, BUILTIN
+
+    known = set(BUILTIN.get(tpl.platform, {}))
+    for name, reason in tpl.gui_infeasible.items():
+        at = where.at(f"gui_infeasible.{name}")
+        if ALIASES.get((tpl.platform, name), name) not in known:
+            raise at.error(f"no {tpl.platform} backend {name!r}",
+                           f"use some of {sorted(known) or 'none (the platform has no backend yet)'}")
+        if not reason.strip():
+            raise at.error("gui_infeasible gives no reason", "say why the GUI cannot solve the task on that backend")
+        _check_placeholders(reason, slots, types, tpl, at)
 
 
 def _check_fills_of_fed_folders(tpl: TaskTemplate, types: Any, fail: Any) -> None:

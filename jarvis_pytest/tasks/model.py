@@ -18,7 +18,7 @@ from typing import Annotated, Any, Literal, Union
 from pydantic import (BaseModel, ConfigDict, Field, StrictFloat, StrictInt, StrictStr, ValidationError,
                       model_validator)
 
-from jarvis_pytest.devices.actions import Platform, parse_action
+from jarvis_pytest.devices.actions import ACTION_TYPES, Platform, parse_action
 
 Scalar = Union[StrictInt, StrictFloat, StrictStr]
 SlotName = Annotated[str, Field(pattern=r"^[a-z_][a-z0-9_]*$")]
@@ -132,6 +132,154 @@ class SolutionStep(_Strict):
         return self
 
 
+class FixedValueError(ValueError):
+    """A validation error that knows its fix (`tasks.library.pydantic_error` puts it in the ConfigError)."""
+
+    def __init__(self, message: str, fix: str):
+        super().__init__(message)
+        self.fix = fix
+
+
+class GuiControl(_Strict):
+    """A control as a person sees it, found in the accessibility tree (Ubuntu: AT-SPI; Windows: the window-handle
+    tree): by its `role` ("push button", "text", "menu item", ...) or window `class` (Windows: "Edit", "Button"),
+    and its `name` (a button's label, a menu item's text) or `text` (what an edit field holds). Names and texts
+    match case-insensitively, whole (`Save` is not `Save As…`), or as a pattern where they hold `*` (any text)."""
+
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+
+    role: str | None = Field(default=None, min_length=1)
+    class_: str | None = Field(default=None, alias="class", min_length=1)
+    name: str | None = None
+    text: str | None = None
+
+    @model_validator(mode="after")
+    def _something(self) -> "GuiControl":
+        if self.role is None and self.class_ is None and self.name is None and self.text is None:
+            raise FixedValueError("a control names nothing to find it by",
+                                  "give its `role` or `class`, and its `name` or `text`")
+        return self
+
+
+class GuiTarget(_Strict):
+    """Where a GUI step acts, named by what a person sees, resolved to the centre of its box at run time: a
+    `control` (in the `window` whose title shows that pattern, if given), a node that shows `text` (its name or its
+    text), or a whole `window`. `index`: the n-th match (0: the first, in the tree's order)."""
+
+    window: str | None = Field(default=None, min_length=1, description="the window's title: a case-insensitive "
+                               "substring, or with `*` (any text) a pattern of the whole title, as the template's "
+                               "`window`")
+    control: GuiControl | None = None
+    text: str | None = Field(default=None, min_length=1, description="text shown on screen: a node's name or text, "
+                             "whole (case-insensitive), or a pattern with `*`")
+    index: int = Field(default=0, ge=0, le=100)
+
+    @model_validator(mode="after")
+    def _one_thing(self) -> "GuiTarget":
+        if self.control is not None and self.text is not None:
+            raise FixedValueError("a target names both a `control` and a `text`", "keep one of them")
+        if self.control is None and self.text is None and self.window is None:
+            raise FixedValueError("a target names nothing", "give a `control` or a `text`, or a `window`")
+        return self
+
+
+#: Actions that a target may place (their x and y come from the target's box).
+GUI_POINTED = frozenset({"MOVE_TO", "CLICK", "RIGHT_CLICK", "DOUBLE_CLICK", "DRAG_TO", "SCROLL", "SWIPE",
+                         "LONG_PRESS"})
+#: Action types a GUI solution may not use: a script can run anything (a shell command, a file write); the GUI
+#: oracle ends the task itself.
+GUI_REFUSED_ACTIONS = {"PYAUTOGUI": "a PYAUTOGUI script can run any Python (a shell command, a file write)",
+                       "DONE": "the GUI oracle says DONE itself after the last step",
+                       "FAIL": "a solution does not give up"}
+#: Keys that make a step something other than an action: each is refused with what it is.
+GUI_REFUSED_KEYS = {"command": "runs a shell command", "run": "runs a shell command", "shell": "runs a shell command",
+                    "user": "runs a command as a user", "upload": "writes a file behind the application's back",
+                    "upload_file": "writes a file behind the application's back",
+                    "content": "writes a file behind the application's back",
+                    "fixture": "writes a file behind the application's back",
+                    "generator": "writes a file behind the application's back",
+                    "path": "names a file (a GUI step acts on what the screen shows)",
+                    "action": "wraps an action (write the action's fields in the step itself)"}
+#: Set-up step types, refused as GUI steps with what they do.
+GUI_SETUP_KINDS = {"upload_file": "writes a file behind the application's back", "command": "runs a shell command",
+                   "launch": "starts a program from outside the GUI", "open": "opens a file from outside the GUI",
+                   "sleep": "is a set-up step (use WAIT)"}
+GUI_FIX = ("use only actions of the agent's action space (`jarvis_pytest/devices/actions.py`) and WAIT_FOR, with "
+           "`target` for what the step acts on; where the GUI cannot do it, state `gui_infeasible` for the backend "
+           "with the reason")
+GUI_STEP_FIELDS = ("type", "target", "timeout", "gone", "note")
+
+
+class GuiStep(BaseModel):
+    """One step of a GUI solution: an action of the agent's action space with its own field names (`{"type":
+    "HOTKEY", "keys": ["ctrl", "s"]}`), where a pointer action may name its `target` instead of `x`/`y` (found
+    within `timeout` seconds, then clicked at its centre), or `WAIT_FOR` a target to show (`gone`: to go), which
+    only observes. No command, no file write, no script: such a step is refused when the template loads."""
+
+    model_config = ConfigDict(extra="allow", frozen=True)
+
+    type: str
+    target: GuiTarget | None = None
+    timeout: float = Field(default=10.0, gt=0, le=120, description="seconds the target gets to show (or, "
+                           "with `gone`, to go)")
+    gone: bool = Field(default=False, description="WAIT_FOR only: wait until no such target shows")
+    note: str | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _refuse(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            raise FixedValueError("a GUI solution step must be an object (an action)", GUI_FIX)
+        kind = data.get("type")
+        if kind in GUI_SETUP_KINDS:
+            raise FixedValueError(f"a GUI solution step cannot be a set-up step ({kind!r}): it "
+                                  f"{GUI_SETUP_KINDS[kind]}", GUI_FIX)
+        for key, what in GUI_REFUSED_KEYS.items():
+            if key in data:
+                raise FixedValueError(f"a GUI solution step cannot have `{key}`: it {what}", GUI_FIX)
+        if kind in GUI_REFUSED_ACTIONS:
+            raise FixedValueError(f"a GUI solution cannot use {kind}: {GUI_REFUSED_ACTIONS[kind]}", GUI_FIX)
+        if kind != "WAIT_FOR" and kind not in ACTION_TYPES:
+            allowed = sorted(set(ACTION_TYPES) - set(GUI_REFUSED_ACTIONS))
+            raise FixedValueError(f"unknown GUI step type {kind!r}", f"use one of {allowed} or WAIT_FOR")
+        return data
+
+    @model_validator(mode="after")
+    def _as_action(self) -> "GuiStep":
+        extra = dict(self.__pydantic_extra__ or {})
+        if self.type == "WAIT_FOR":
+            if self.target is None:
+                raise FixedValueError("WAIT_FOR needs a `target`", "name the window, control or text to wait for")
+            if extra:
+                raise FixedValueError(f"WAIT_FOR takes no {sorted(extra)[0]!r}", "give only target, timeout, gone")
+            return self
+        if self.gone:
+            raise FixedValueError("`gone` belongs to WAIT_FOR", "remove it, or make the step a WAIT_FOR")
+        if self.target is not None:
+            if self.type not in GUI_POINTED:
+                raise FixedValueError(f"{self.type} takes no `target` (it does not point)", "click the target in a "
+                                      "step before it (CLICK with the target), then send the keys")
+            given = sorted({"x", "y"} & set(extra))
+            if given:
+                raise FixedValueError(f"a step with a `target` cannot also give {' and '.join(given)}",
+                                      "keep the target (resolved at run time) or the coordinates")
+        try:
+            self.action(0, 0)
+        except ValidationError as exc:
+            first = exc.errors()[0]
+            loc = ".".join(str(x) for x in first["loc"][1:]) or first["loc"][0]
+            raise FixedValueError(f"not a valid {self.type} action ({loc}: {first['msg']})",
+                                  "use the action's own fields (see `jarvis_pytest/devices/actions.py`)") from None
+        return self
+
+    def action(self, x: int | None = None, y: int | None = None) -> Any:
+        """The plain action this step sends; a targeted step's `x`, `y` are its target's centre."""
+        fields = {"type": self.type, **(self.__pydantic_extra__ or {})}
+        if self.target is not None and x is not None and y is not None:
+            fields.update(x=x, y=y)
+        return parse_action(fields)
+
+
 NegativeKind = Literal["artefact", "wrong", "partial", "damage"]
 NEGATIVE_KINDS: tuple[str, ...] = ("artefact", "wrong", "partial", "damage")
 
@@ -204,6 +352,13 @@ class TaskTemplate(_Strict):
     config: list[SetupStep] = Field(default_factory=list, description="setup steps run before the agent starts")
     evaluate: list[EvaluatorSpec] = Field(min_length=1)
     solution: list[SolutionStep] = Field(default_factory=list, description="the oracle's steps")
+    gui_solution: list[GuiStep] = Field(
+        default_factory=list, description="the task solved through the GUI alone: actions of the agent's action "
+        "space, targets named by what a person sees (`jarvis qc` checks the task passes after them; the "
+        "`gui-oracle` agent runs them)")
+    gui_infeasible: dict[str, str] = Field(
+        default_factory=dict, description="backend → why the GUI cannot solve the task there (e.g. "
+        "{\"wine\": \"Wine's Paint has no ...\"}); `jarvis qc` shows the reason instead of running a GUI solution")
     negatives: list[Negative] = Field(
         default_factory=list, description="near-miss wrong final states that must fail (`jarvis qc` runs them); "
         "at least an `artefact` and one of `wrong`/`partial`/`damage`")
@@ -254,6 +409,10 @@ class Subtask(_Strict):
     config: list[SetupStep]
     evaluate: list[EvaluatorSpec]
     solution: list[SolutionStep] = Field(default_factory=list)
+    gui_solution: list[GuiStep] | None = Field(default=None, description="atomic instances only (for `jarvis qc` "
+                                               "and the gui-oracle agent)")
+    gui_infeasible: dict[str, str] | None = Field(default=None, description="atomic instances only: backend → why "
+                                                  "the GUI cannot solve it there")
     negatives: list[Negative] | None = Field(default=None, description="atomic instances only (for `jarvis qc`)")
     baseline: list[str] = Field(default_factory=list)
     consumes: dict[str, Consumption] = Field(default_factory=dict)

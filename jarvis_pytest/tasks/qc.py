@@ -1,11 +1,13 @@
 """`jarvis qc`: the paper's quality gate over the atomic task library, made adversarial.
 
 For every task instance every evaluator must fail on the freshly set-up device, the task must fail on each of its
-near-miss wrong states (`negatives`: at least an `artefact` and one wrong, partial or damaging operation), and it
-must pass after the oracle. A composed task (`--composed`) must fail on the fresh devices and pass after the
-oracle too, and each of its broken chains (`plugin/chain_negatives.py`) must fail it at the subtask meant to catch
-it. The gate
-runs as a benchmark run (`pytest tasks/test_atomic.py --qc`, so it has the harness's parallelism, pre-warming,
+near-miss wrong states (`negatives`: at least an `artefact` and one wrong, partial or damaging operation), it
+must pass after the oracle, and it must pass after its GUI solution (`gui_solution`: the agent's actions only, run
+by the `gui-oracle` on fresh devices; `plugin/gui_check.py`). A template that says the GUI cannot solve it on the
+run's backend (`gui_infeasible`) shows the reason instead, and one with neither is counted as "no GUI solution
+yet", not a violation, while GUI solutions are written template by template. A composed task (`--composed`) must
+fail on the fresh devices and pass after the oracle too, and each of its broken chains (`plugin/chain_negatives.py`)
+must fail it at the subtask meant to catch it. The gate runs as a benchmark run (`pytest tasks/test_atomic.py --qc`, so it has the harness's parallelism, pre-warming,
 results and --resume), then prints one row per instance and exits non-zero on any violation or error.
 """
 
@@ -66,16 +68,34 @@ def _negatives(result: TaskResult) -> tuple[str, str]:
     return cell, reason
 
 
+GUI_CELLS = {"passed": "pass", "failed": "FAIL", "infeasible": "infeasible", "none": "none yet"}
+
+
+def _gui(result: TaskResult) -> tuple[str, str]:
+    """The GUI column (`pass`, `FAIL`, `infeasible`, `none yet`; `-` without the check) and, when a GUI solution
+    fails, why ("" otherwise)."""
+    checks = result.qc_gui or []
+    failed = next((g for g in checks if g.state == "failed"), None)
+    if failed is not None:
+        return "FAIL", f"GUI solution fails: {failed.reason}"
+    for state in ("infeasible", "none", "passed"):
+        if any(g.state == state for g in checks):
+            return GUI_CELLS[state], ""
+    return "-", ""
+
+
 def qc_row(result: TaskResult) -> dict[str, str]:
     """One line of the table: the task, its verdict on the fresh device (must be `fail`), on its negatives (each
-    must fail), after the oracle (must be `pass`), the gate's outcome and the first reason when it is violated."""
+    must fail), after the oracle (must be `pass`), after its GUI solution (must be `pass` where it has one), the
+    gate's outcome and the first reason when it is violated."""
     if result.status == "skipped":  # no device for it here: counted apart, never a violation
-        return {"task": result.task_id, "fresh": "-", "negatives": "-", "oracle": "-", "gate": "skipped",
+        return {"task": result.task_id, "fresh": "-", "negatives": "-", "oracle": "-", "gui": "-", "gate": "skipped",
                 "reason": (result.error or "")[:200]}
     before = _state(result.qc_initial, want=False)
     after = _state(result.subtasks, want=True)
     negatives, negative_reason = _negatives(result)
-    ok = result.status == "passed" and not negative_reason
+    gui, gui_reason = _gui(result)
+    ok = result.status == "passed" and not negative_reason and not gui_reason
     reason = ""
     if result.status == "error":
         reason = (result.error or "error").splitlines()[0]
@@ -87,20 +107,52 @@ def qc_row(result: TaskResult) -> dict[str, str]:
         elif bad_after:
             reason = "oracle fails: " + bad_after[0].func + ": " + bad_after[0].reason
         else:
-            reason = negative_reason
-    return {"task": result.task_id, "fresh": before, "negatives": negatives, "oracle": after,
+            reason = negative_reason or gui_reason
+    return {"task": result.task_id, "fresh": before, "negatives": negatives, "oracle": after, "gui": gui,
             "gate": "ok" if ok else ("ERROR" if result.status == "error" else "VIOLATED"), "reason": reason[:200]}
 
 
 def render_table(rows: list[dict[str, str]]) -> str:
     """A Markdown table of the gate's rows, then a one-line total."""
-    lines = ["| task | fresh device | negatives | after oracle | gate | reason |", "|---|---|---|---|---|---|"]
-    lines += [f"| {r['task']} | {r['fresh']} | {r.get('negatives', '-')} | {r['oracle']} | {r['gate']} | "
-              f"{r['reason']} |" for r in rows]
+    lines = ["| task | fresh device | negatives | after oracle | after GUI solution | gate | reason |",
+             "|---|---|---|---|---|---|---|"]
+    lines += [f"| {r['task']} | {r['fresh']} | {r.get('negatives', '-')} | {r['oracle']} | {r.get('gui', '-')} | "
+              f"{r['gate']} | {r['reason']} |" for r in rows]
     ok = sum(r["gate"] == "ok" for r in rows)
     skipped = sum(r["gate"] == "skipped" for r in rows)
     lines.append(f"\n{ok}/{len(rows) - skipped} instances pass the quality gate"
                  + (f"; {skipped} skipped: no device for them on this machine" if skipped else ""))
+    return "\n".join(lines)
+
+
+def gui_table(results: list[TaskResult]) -> str:
+    """Per application (and backend): how many of its templates the GUI solves (every instance passed after its
+    GUI solution), fail it, are infeasible there, or have no GUI solution yet; then each infeasible template's
+    reason ("" when no task had the check)."""
+    per_template: dict[tuple[str, str, str], list[str]] = {}  # (backend label, app, template) → instance states
+    reasons: dict[tuple[str, str], str] = {}
+    for result in results:
+        for g in result.qc_gui or []:
+            label = f"{result.platforms[0] if result.platforms else '?'} ({g.backend})" if g.backend else "?"
+            per_template.setdefault((label, g.app, g.template), []).append(g.state)
+            if g.state == "infeasible":
+                reasons[(g.template, label)] = g.reason
+    if not per_template:
+        return ""
+    counts: dict[tuple[str, str], dict[str, int]] = {}
+    for (label, app, _), states in sorted(per_template.items()):
+        state = next(s for s in ("failed", "none", "infeasible", "passed") if s in states)
+        row = counts.setdefault((label, app), {"passed": 0, "failed": 0, "infeasible": 0, "none": 0})
+        row[state] += 1
+    lines = ["| backend | application | solved through the GUI | GUI solution fails | infeasible there | "
+             "no GUI solution yet |", "|---|---|--:|--:|--:|--:|"]
+    lines += [f"| {label} | {app} | {c['passed']} | {c['failed']} | {c['infeasible']} | {c['none']} |"
+              for (label, app), c in counts.items()]
+    total = {k: sum(c[k] for c in counts.values()) for k in ("passed", "failed", "infeasible", "none")}
+    lines.append(f"\n{total['passed']} templates solved through the GUI, {total['failed']} failing, "
+                 f"{total['infeasible']} infeasible on their backend, {total['none']} without a GUI solution yet "
+                 "(not a violation while GUI solutions are rolled out)")
+    lines += [f"- infeasible: {template} on {label}: {why}" for (template, label), why in sorted(reasons.items())]
     return "\n".join(lines)
 
 
@@ -147,9 +199,9 @@ def run_qc(args: argparse.Namespace) -> int:
         return 2 if proc.returncode == 4 else (proc.returncode or 1)  # a usage error is the command's usage error
     rows = [qc_row(r) for r in results]
     table = render_table(rows)
-    chains = chain_table(results)
-    if chains:
-        table += "\n\n" + chains
+    for extra in (gui_table(results), chain_table(results)):
+        if extra:
+            table += "\n\n" + extra
     (run_dir / "qc.md").write_text(table + "\n", encoding="utf-8")
     print(table)
     for p in problems:
@@ -160,8 +212,9 @@ def run_qc(args: argparse.Namespace) -> int:
 
 
 def register(sub: Any) -> None:
-    p = sub.add_parser("qc", help="quality gate: every task instance fails on its fresh device and passes after "
-                       "the oracle (prints a table; exit 1 on any violation)")
+    p = sub.add_parser("qc", help="quality gate: every task instance fails on its fresh device and on its negatives, "
+                       "and passes after the oracle and after its GUI solution (prints a table; exit 1 on any "
+                       "violation)")
     p.add_argument("--platform", default=None, help="only this platform's tasks (e.g. ubuntu)")
     p.add_argument("-k", default=None, metavar="EXPR", help="only tasks matching this pytest -k expression")
     p.add_argument("-n", default=None, metavar="N", help="parallel workers (pytest-xdist), e.g. 2 or auto")

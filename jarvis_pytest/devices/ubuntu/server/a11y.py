@@ -3,6 +3,10 @@
 Every application on the session's accessibility bus is a child of the desktop node; below them, a node is kept
 when it is showing (hidden menus and closed tabs are skipped with their subtrees unless `showing_only` is off).
 Nodes are `{"role", "name", "box": [x, y, w, h], "states": [...], "text"?: ..., "children"?: [...]}`.
+
+A node that manages its descendants (a LibreOffice Calc sheet: 2^31 - 1 cells, made on demand) is kept without
+its children (`children_skipped`: how many it has), as screen readers do: walking them never ends. The deadline
+is checked at every child, shown or not, so a walk ends in time however many children a node has.
 """
 
 from __future__ import annotations
@@ -54,8 +58,14 @@ def tree(max_nodes: int = 2000, max_depth: int = 30, timeout: float = 5.0, showi
         if depth >= max_depth:
             truncated = truncated or n_children > 0
             return out
+        if n_children and states.contains(Atspi.StateType.MANAGES_DESCENDANTS):
+            out["children_skipped"] = n_children
+            return out
         children = []
         for i in range(n_children):
+            if time.monotonic() > deadline:  # checked for hidden children too: a node may have millions
+                truncated = True
+                break
             try:
                 child = acc.get_child_at_index(i)
                 if child is None:

@@ -1,0 +1,300 @@
+"""The GUI oracle (`--agent gui-oracle`): a task's GUI solution carried out with the agent's actions alone.
+
+Where the oracle (`agents/oracle.py`) proves that the evaluators accept a correct final state, often reached with
+shell commands, the GUI oracle proves that an agent with only the action space can reach it. It carries out the
+template's `gui_solution` (`tasks.model.GuiStep`): actions of the unified action space, where a pointer action may
+name its target by what a person sees (a control of a window, text on screen) instead of pixels. At each step it
+reads the device's accessibility tree (Ubuntu: AT-SPI; Windows: the window-handle tree), finds the target within
+the step's `timeout`, and answers the plain action at the centre of the target's box: the harness's step loop then
+executes it as it executes any agent's action, and the trajectory records the plain action with the target and
+the node it was resolved to (`extra`). `WAIT_FOR` only observes (a WAIT(0) step records what it saw). A target
+not found in time is the step's error, recorded; the next step gives up (FAIL), as does an action the device
+refused.
+
+It is told the GUI solution and given a view of the devices' accessibility trees through `oracle.brief` (the one
+private path, recognising it by its class object as it does the oracle): it holds no device, so it can run no
+command and write no file. Composed tasks have no GUI solutions yet: it gives up on a subtask without one, saying
+so, and on one whose template says the GUI cannot solve it on the device's backend (`gui_infeasible`).
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from dataclasses import dataclass
+from typing import Any, Callable, Iterator, Sequence
+
+from jarvis_pytest.agents.protocol import AgentStep, HistoryEntry, TaskContext
+from jarvis_pytest.devices.actions import Done, Fail, Wait
+from jarvis_pytest.devices.base import Observation
+from jarvis_pytest.devices.control_http import title_matches
+
+POLL = 0.3  # seconds between two reads of the accessibility tree while a target is awaited
+TREE_NODES = 5000  # the most nodes of one read (LibreOffice shows many cells)
+TREE_TIMEOUT = 8.0  # seconds one read may take on the device
+
+
+def backend_name(label: str) -> str:
+    """A backend's name from the label results record: "windows (wine)" → "wine"."""
+    m = re.search(r"\(([^()]*)\)\s*$", label or "")
+    return m.group(1) if m else label
+
+
+def text_matches(pattern: str, value: str | None) -> bool:
+    """A control's name or text against a step's pattern: case-insensitive, the whole text, or with `*` (any text)
+    a pattern of the whole text; on both sides spaces at the ends are dropped and every run of white space (line
+    breaks too) counts as one space."""
+    if value is None:
+        return False
+    want = " ".join(pattern.casefold().split())
+    have = " ".join(value.casefold().split())
+    if "*" not in want:
+        return want == have
+    return re.fullmatch(".*".join(map(re.escape, want.split("*"))), have, re.S) is not None
+
+
+def _top_levels(root: dict) -> Iterator[dict]:
+    """The windows of the desktop: an application's children (AT-SPI), or the desktop's (the window-handle tree)."""
+    for child in root.get("children", []):
+        if child.get("role") == "application":
+            yield from child.get("children", [])
+        else:
+            yield child
+
+
+def _on_screen(node: dict) -> bool:
+    box = node.get("box")
+    return bool(box) and box[2] > 0 and box[3] > 0 and box[0] + box[2] > 0 and box[1] + box[3] > 0
+
+
+def _walk(node: dict, path: tuple[int, ...] = ()) -> Iterator[tuple[tuple[int, ...], dict]]:
+    yield path, node
+    for i, child in enumerate(node.get("children", [])):
+        yield from _walk(child, path + (i,))
+
+
+def _control_matches(node: dict, control: Any) -> bool:
+    if control.role is not None and node.get("role", "").casefold() != control.role.casefold():
+        return False
+    if control.class_ is not None and node.get("class", "").casefold() != control.class_.casefold():
+        return False
+    if control.name is not None and not text_matches(control.name, node.get("name")):
+        return False
+    if control.text is not None and not text_matches(control.text, node.get("text")):
+        return False
+    return True
+
+
+def find_target(tree: dict, target: Any) -> tuple[dict | None, str | None]:
+    """The node `target` (`tasks.model.GuiTarget`) names in an accessibility tree (the `tree` of `a11y_tree()`),
+    with the title of the window it was found in: a `control` (the first match in the tree's order), a node
+    showing `text` (the innermost one: a label, not the panel around it) or the `window` itself; the `index`-th
+    match. Only nodes with a box on screen count. (None, None) when nothing matches."""
+    windows = [w for w in _top_levels(tree) if target.window is None or title_matches(target.window, w.get("name", ""))]
+    if target.control is None and target.text is None:
+        shown = [w for w in windows if _on_screen(w)]
+        node = shown[target.index] if len(shown) > target.index else None
+        return node, (node or {}).get("name")
+    found: list[tuple[tuple[int, ...], dict, str]] = []
+    for w_index, window in enumerate(windows):
+        for path, node in _walk(window, (w_index,)):
+            if not _on_screen(node):
+                continue
+            if target.control is not None:
+                hit = _control_matches(node, target.control)
+            else:
+                hit = text_matches(target.text, node.get("name")) or text_matches(target.text, node.get("text"))
+            if hit:
+                found.append((path, node, window.get("name", "")))
+    if target.text is not None:  # the innermost: drop a match that holds another match
+        paths = [p for p, _, _ in found]
+        found = [f for f in found if not any(len(q) > len(f[0]) and q[:len(f[0])] == f[0] for q in paths)]
+    if len(found) <= target.index:
+        return None, None
+    _, node, title = found[target.index]
+    return node, title
+
+
+def describe_target(target: Any) -> str:
+    """A target in words, for errors and the trajectory."""
+    parts = []
+    if target.control is not None:
+        c = target.control
+        what = " ".join(f"{k}={v!r}" for k, v in (("role", c.role), ("class", c.class_), ("name", c.name),
+                                                   ("text", c.text)) if v is not None)
+        parts.append(f"a control ({what})")
+    if target.text is not None:
+        parts.append(f"the text {target.text!r}")
+    if target.window is not None:
+        parts.append(("in " if parts else "") + f"the window {target.window!r}")
+    if target.index:
+        parts.append(f"(match {target.index})")
+    return " ".join(parts)
+
+
+class A11yView:
+    """What the GUI oracle is given of one device: its accessibility tree, and nothing else of it."""
+
+    __slots__ = ("_read",)
+
+    def __init__(self, device: Any):
+        self._read: Callable[[], dict] = lambda: device.a11y_tree(max_nodes=TREE_NODES, timeout=TREE_TIMEOUT)
+
+    def tree(self) -> dict:
+        """`{"tree": {...}, "truncated": bool, ...}` as the device's `/a11y` answers."""
+        return self._read()
+
+
+@dataclass(frozen=True)
+class Found:
+    """What an awaited target came to: its node (None when it did not show, or for `gone` when it went), the
+    window it was found in, the seconds waited and the reads taken, and whether a read was cut short."""
+
+    node: dict | None
+    window: str | None
+    seconds: float
+    reads: int
+    truncated: bool
+
+
+def await_target(view: A11yView, target: Any, timeout: float, *, gone: bool = False,
+                 clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep) -> Found:
+    """Read `view`'s tree until `target` shows (with `gone`: until it no longer shows), at most `timeout` seconds
+    (one read at least). `Found.node` is the node found; with `gone` it is None once the target went."""
+    start = clock()
+    reads, truncated = 0, False
+    node, title = None, None
+    while True:
+        answer = view.tree()
+        reads += 1
+        truncated = truncated or bool(answer.get("truncated"))
+        node, title = find_target(answer.get("tree") or {}, target)
+        if (node is None) == gone:
+            return Found(node, title, round(clock() - start, 3), reads, truncated)
+        if clock() - start >= timeout:
+            return Found(node if gone else None, title if gone else None, round(clock() - start, 3), reads,
+                         truncated)
+        sleep(POLL)
+
+
+def centre(box: Sequence[int]) -> tuple[int, int]:
+    """The centre of a box [x, y, w, h]."""
+    return int(box[0] + box[2] // 2), int(box[1] + box[3] // 2)
+
+
+@dataclass(frozen=True)
+class GuiItem:
+    """One step of a GUI plan: subtask `subtask`'s GUI step `index` (`step`, a GuiStep) on `platform`."""
+
+    subtask: int
+    platform: str
+    index: int
+    step: Any
+
+
+def gui_plan(subtasks: Sequence[Any], backends: dict[str, str] | None = None) -> tuple[list[GuiItem], str | None]:
+    """The GUI plan of a task (its subtasks in execution order): every subtask's GUI steps in order, and why there
+    is none (a subtask without a GUI solution, one whose file set-up held back for the solver to open, or one the
+    template says the GUI cannot solve on the device's backend, from `backends`: platform → label)."""
+    plan: list[GuiItem] = []
+    for s, sub in enumerate(subtasks):
+        backend = backend_name((backends or {}).get(sub.platform, ""))
+        reason = (sub.gui_infeasible or {}).get(backend)
+        if reason:
+            return [], f"subtask {s} ({sub.template}) cannot be solved through the GUI on {backend}: {reason}"
+        if not sub.gui_solution:
+            return [], f"subtask {s} ({sub.template}) has no GUI solution yet"
+        if sub.opens:
+            return [], f"subtask {s} ({sub.template}) opens a file an upstream subtask made: no GUI solution yet"
+        plan += [GuiItem(s, sub.platform, i, step) for i, step in enumerate(sub.gui_solution)]
+    return plan, None
+
+
+class GuiOracleAgent:
+    """Carries out the task's GUI plan (`gui_plan`), handed to it with the devices' accessibility views by
+    `oracle.brief` after `reset`; see the module's docstring."""
+
+    __slots__ = ("options", "views", "queue", "last_platform", "failed", "briefed", "pending")
+    name = "gui-oracle"
+
+    def __init__(self, options: dict[str, Any] | None = None):
+        self.options = dict(options or {})
+        self.reset(TaskContext(task_id="", instruction="", platforms=()))
+
+    def reset(self, task: TaskContext) -> None:
+        self.views: dict[str, A11yView] = {}
+        self.queue: list[GuiItem] = []
+        self.last_platform: str | None = task.platforms[0] if task.platforms else None
+        self.failed: AgentStep | None = None
+        self.briefed: bool | str = False  # True, or why there is no plan
+        self.pending: GuiItem | None = None  # the step whose action the harness is carrying out
+
+    def act(self, observations: dict[str, Observation], history: list[HistoryEntry]) -> AgentStep:
+        if self.briefed is not True:
+            why = self.briefed or "the harness handed it no GUI solution for this task (`brief`)"
+            return AgentStep(platform=self.last_platform, action=Fail(), reasoning=f"gui-oracle: {why}")
+        if self.failed is not None:
+            return self.failed
+        if self.pending is not None and history and history[-1].error:  # the device refused our last action
+            item = self.pending
+            return self._fail(item.platform, f"gui-oracle: gui_solution[{item.index}] of subtask {item.subtask} "
+                                             f"failed: {history[-1].error}")
+        self.pending = None
+        if not self.queue:
+            return AgentStep(platform=self.last_platform, action=Done(), reasoning="GUI solution complete")
+        item = self.queue.pop(0)
+        step = item.step
+        platform = self.last_platform = item.platform
+        where = f"gui_solution[{item.index}]" + (f" of subtask {item.subtask}" if item.subtask else "")
+        note = f" ({step.note})" if step.note else ""
+        if step.target is None:
+            self.pending = item
+            return AgentStep(platform=platform, action=step.action(), reasoning=f"{where}{note}",
+                             extra={"gui_step": item.index})
+        what = describe_target(step.target)
+        found = await_target(self.views[platform], step.target, step.timeout, gone=step.gone)
+        seen = {"gui_step": item.index, "target": step.target.model_dump(mode="json", by_alias=True,
+                                                                          exclude_none=True),
+                "waited": found.seconds, "reads": found.reads}
+        if found.node is not None:
+            seen["resolved"] = {k: found.node[k] for k in ("role", "name", "class", "box") if k in found.node}
+            seen["resolved"]["window"] = found.window
+        if step.type == "WAIT_FOR":
+            if (found.node is None) != step.gone:
+                return self._missing(platform, where, what, step, found, seen)
+            return AgentStep(platform=platform, action=Wait(seconds=0), extra=seen,
+                             reasoning=f"{where}: {what} {'went' if step.gone else 'shows'} after "
+                                       f"{found.seconds:g} s{note}")
+        if found.node is None:
+            return self._missing(platform, where, what, step, found, seen)
+        x, y = centre(found.node["box"])
+        self.pending = item
+        return AgentStep(platform=platform, action=step.action(x, y), extra=seen,
+                         reasoning=f"{where}: {step.type} at the centre of {what} ({x}, {y}){note}")
+
+    def _missing(self, platform: str, where: str, what: str, step: Any, found: Found,
+                 seen: dict[str, Any]) -> AgentStep:
+        """The step's error (recorded by the harness), and a FAIL for the next step."""
+        state = "still shows" if step.gone else "did not show"
+        cut = (" (the accessibility tree was cut short: it has more nodes than one read takes)"
+               if found.truncated else "")
+        error = f"{where}: {what} {state} within {step.timeout:g} s ({found.reads} reads){cut}"
+        self._fail(platform, f"gui-oracle: {error}")
+        return AgentStep(platform=platform, action=None, error=error, reasoning=error, extra=seen)
+
+    def _fail(self, platform: str, reasoning: str) -> AgentStep:
+        self.failed = AgentStep(platform=platform, action=Fail(), reasoning=reasoning)
+        return self.failed
+
+    def config(self) -> dict[str, Any]:
+        return {"name": self.name}
+
+
+def brief_gui(agent: GuiOracleAgent, subtasks: Sequence[Any], devices: dict[str, Any],
+              backends: dict[str, str] | None) -> None:
+    """Hand `agent` (exactly a GuiOracleAgent: `oracle.brief` checked) the task's GUI plan and the devices'
+    accessibility views."""
+    plan, why = gui_plan(subtasks, backends)
+    agent.queue = plan
+    agent.views = {platform: A11yView(device) for platform, device in devices.items()}
+    agent.briefed = True if why is None else why

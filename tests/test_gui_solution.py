@@ -1,0 +1,347 @@
+"""GUI solutions (issue 39): a template's `gui_solution` holds actions of the agent's action space only, checked
+when the template loads; the GUI oracle finds each step's target in the accessibility tree and answers the plain
+action at its centre; only the built-in GUI oracle is told the GUI solution.
+
+The load-time refusals are one table: each row is a step (or a `gui_infeasible`) that must be refused with one
+ConfigError naming the template file, the step and the fix. Target resolution is checked on recorded trees of
+both shapes (AT-SPI on Ubuntu, the window-handle tree under Wine); `tests/test_gui_oracle_device.py` checks it on
+a real Ubuntu device.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from jarvis_pytest.agents.gui_oracle import (A11yView, GuiOracleAgent, await_target, backend_name, centre,
+                                             find_target, gui_plan, text_matches)
+from jarvis_pytest.agents.oracle import OracleAgent, brief
+from jarvis_pytest.agents.protocol import HistoryEntry, TaskContext
+from jarvis_pytest.errors import ConfigError
+from jarvis_pytest.tasks.instances import atomic_task
+from jarvis_pytest.tasks.library import load_library
+from jarvis_pytest.tasks.model import GuiTarget
+
+REPO = Path(__file__).resolve().parents[1]
+TEMPLATE = {k: v for k, v in json.loads((REPO / "tasks" / "ubuntu" / "mousepad_append_line.json").read_text()).items()
+            if k not in ("gui_solution", "gui_infeasible")}
+GOOD_STEP = {"type": "CLICK", "target": {"window": "{{list_file.name}} - Mousepad", "control": {"role": "text"}}}
+
+
+def library_with(tmp_path: Path, **changes) -> Path:
+    root = tmp_path / "lib"
+    (root / "ubuntu").mkdir(parents=True)
+    (root / "ubuntu" / "t.json").write_text(json.dumps(dict(TEMPLATE, **changes)))
+    return root
+
+
+#: (what is wrong, the GUI solution, words the error must hold). Each step is refused at load.
+REFUSED = [
+    ("a shell command", [GOOD_STEP, {"command": "printf 'x' >> /home/user/a.txt"}],
+     ["gui_solution[1]", "cannot have `command`", "runs a shell command"]),
+    ("a command by another key", [{"type": "WAIT", "run": "rm -rf /home/user"}],
+     ["gui_solution[0]", "cannot have `run`"]),
+    ("a shell command inside a step", [{"type": "TYPING", "text": "x", "shell": "echo x > /tmp/y"}],
+     ["gui_solution[0]", "cannot have `shell`"]),
+    ("a file upload", [{"type": "upload_file", "path": "/home/user/a.txt", "content": "x"}],
+     ["gui_solution[0]", "set-up step ('upload_file')", "writes a file behind the application's back"]),
+    ("a file write by content", [{"type": "WAIT", "content": "olive oil"}],
+     ["gui_solution[0]", "cannot have `content`", "behind the application's back"]),
+    ("a set-up step", [{"type": "launch", "app": "mousepad"}],
+     ["gui_solution[0]", "set-up step ('launch')", "starts a program"]),
+    ("the oracle's step format", [{"action": {"type": "CLICK", "x": 1, "y": 2}}],
+     ["gui_solution[0]", "cannot have `action`"]),
+    ("a script", [{"type": "PYAUTOGUI", "script": "import os; os.system('true')"}],
+     ["gui_solution[0]", "cannot use PYAUTOGUI"]),
+    ("an unknown action", [GOOD_STEP, GOOD_STEP, {"type": "RUN_SHELL", "cmd": "ls"}],
+     ["gui_solution[2]", "unknown GUI step type 'RUN_SHELL'", "WAIT_FOR"]),
+    ("a step without a type", [{"keys": ["ctrl", "s"]}], ["gui_solution[0]", "unknown GUI step type None"]),
+    ("an action with a bad field", [{"type": "HOTKEY", "keys": []}], ["gui_solution[0]", "not a valid HOTKEY"]),
+    ("a target naming nothing", [{"type": "CLICK", "target": {}}], ["gui_solution[0].target", "names nothing"]),
+    ("a control naming nothing", [{"type": "CLICK", "target": {"window": "x", "control": {}}}],
+     ["gui_solution[0].target.control", "names nothing to find it by"]),
+    ("a control with an unknown field", [{"type": "CLICK", "target": {"control": {"label": "OK"}}}],
+     ["gui_solution[0].target.control.label", "unknown field"]),
+    ("a control and a text", [{"type": "CLICK", "target": {"control": {"role": "text"}, "text": "x"}}],
+     ["gui_solution[0].target", "both a `control` and a `text`"]),
+    ("a target and coordinates", [{"type": "CLICK", "x": 5, "y": 6, "target": {"text": "OK"}}],
+     ["gui_solution[0]", "cannot also give x and y"]),
+    ("a target on a key action", [{"type": "TYPING", "text": "x", "target": {"text": "Name"}}],
+     ["gui_solution[0]", "TYPING takes no `target`"]),
+    ("a wait for nothing", [{"type": "WAIT_FOR", "timeout": 5}], ["gui_solution[0]", "WAIT_FOR needs a `target`"]),
+    ("a wait with an action's field", [{"type": "WAIT_FOR", "target": {"text": "x"}, "x": 3}],
+     ["gui_solution[0]", "WAIT_FOR takes no 'x'"]),
+    ("an unknown placeholder", [{"type": "TYPING", "text": "{{no_such_slot}}"}],
+     ["gui_solution[0].text", "names no slot"]),
+]
+
+
+@pytest.mark.parametrize("what, steps, words", REFUSED, ids=[r[0] for r in REFUSED])
+def test_a_gui_step_that_is_not_an_action_is_refused_at_load(tmp_path, what, steps, words):
+    root = library_with(tmp_path, gui_solution=steps)
+    with pytest.raises(ConfigError) as caught:
+        load_library(root)
+    err = caught.value
+    text = str(err)
+    assert err.path and err.path.endswith("t.json"), text
+    assert all(w in text for w in words), text
+    assert err.fix, text
+
+
+def test_a_refused_command_says_the_fix(tmp_path):
+    """The fix of a refused command names the action space and `gui_infeasible`."""
+    with pytest.raises(ConfigError) as caught:
+        load_library(library_with(tmp_path, gui_solution=[{"command": "true"}]))
+    assert "gui_infeasible" in caught.value.fix and "devices/actions.py" in caught.value.fix
+
+
+INFEASIBLE_REFUSED = [
+    ("an unknown backend", {"wine": "no such dialog"}, ["gui_infeasible.wine", "no ubuntu backend 'wine'"]),
+    ("no reason", {"docker": " "}, ["gui_infeasible.docker", "gives no reason"]),
+    ("a reason that is not text", {"docker": 3}, ["gui_infeasible.docker"]),
+]
+
+
+@pytest.mark.parametrize("what, infeasible, words", INFEASIBLE_REFUSED, ids=[r[0] for r in INFEASIBLE_REFUSED])
+def test_gui_infeasible_names_a_backend_of_the_platform_and_a_reason(tmp_path, what, infeasible, words):
+    with pytest.raises(ConfigError) as caught:
+        load_library(library_with(tmp_path, gui_infeasible=infeasible))
+    assert all(w in str(caught.value) for w in words), str(caught.value)
+
+
+def test_a_refused_step_stops_the_run_at_start_up_with_one_usage_error(tmp_path):
+    """The same error path as any bad template: exit 4, the file, the step, the fix, no traceback."""
+    root = library_with(tmp_path, gui_solution=[GOOD_STEP, {"command": "echo 'x' >> /home/user/a.txt"}])
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:xdist", "-q", "tasks",
+                           "--agent", "gui-oracle", "--library", str(root), "--results-dir", str(tmp_path / "out")],
+                          cwd=REPO, capture_output=True, text=True, timeout=120)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 4, out[-3000:]
+    assert "Traceback" not in out and "INTERNALERROR" not in out, out[-3000:]
+    for words in ("t.json", "gui_solution[1]", "cannot have `command`", "fix:"):
+        assert words in out, out[-3000:]
+    assert not list(tmp_path.glob("out/tasks")), "nothing may run"
+
+
+def test_placeholders_are_rendered_in_gui_steps_of_atomic_instances(tmp_path):
+    steps = [GOOD_STEP, {"type": "TYPING", "text": "{{item}}\n"},
+             {"type": "WAIT_FOR", "target": {"window": "~*/{{list_file.name}} - Mousepad"}, "timeout": 5}]
+    lib = load_library(library_with(tmp_path, gui_solution=steps, gui_infeasible={"docker": "not {{item}}"}))
+    sub = atomic_task(lib.templates[0], 0).formatted_subtasks[0]
+    name = Path(str(sub.input["list_file"].value)).name
+    assert sub.gui_solution[0].target.window == f"{name} - Mousepad"
+    assert sub.gui_solution[1].action().text == f"{sub.input['item'].value}\n"
+    assert sub.gui_solution[2].target.window == f"~*/{name} - Mousepad" and sub.gui_solution[2].timeout == 5
+    assert sub.gui_infeasible == {"docker": f"not {sub.input['item'].value}"}
+    # a dataset's subtask keeps the field names of the file (`class`, not `class_`)
+    dumped = atomic_task(load_library(library_with(tmp_path / "b", gui_solution=[
+        {"type": "CLICK", "target": {"control": {"class": "Edit"}}}])).templates[0], 0).to_json()
+    assert dumped["formatted_subtasks"][0]["gui_solution"][0]["target"]["control"] == {"class": "Edit"}
+
+
+def test_a_template_without_gui_fields_keeps_its_definition():
+    """Adding the fields changed no atomic task's definition (what --resume compares) nor the library's digest."""
+    lib = load_library(REPO / "tasks")
+    plain = next(t for t in lib.templates if not t.gui_solution and not t.gui_infeasible)
+    data = atomic_task(plain, 0).to_json()["formatted_subtasks"][0]
+    assert "gui_solution" not in data and "gui_infeasible" not in data
+
+
+# -- target resolution on recorded trees ---------------------------------------------------------------------
+ATSPI = {"role": "desktop frame", "name": "main", "children": [
+    {"role": "application", "name": "xfce4-panel", "children": [
+        {"role": "frame", "name": "", "box": [0, 0, 1920, 27], "children": [
+            {"role": "toggle button", "name": "*~/notes.txt - Mousepad", "box": [110, 0, 200, 26]}]}]},
+    {"role": "application", "name": "mousepad", "children": [
+        {"role": "frame", "name": "*~/notes.txt - Mousepad", "box": [635, 296, 650, 514], "children": [
+            {"role": "menu bar", "name": "", "box": [640, 325, 640, 25], "children": [
+                {"role": "menu", "name": "File", "box": [640, 325, 39, 25]},
+                {"role": "menu", "name": "Document", "box": [828, 325, 83, 25], "children": [
+                    {"role": "menu", "name": "Line Ending      ", "box": [828, 451, 295, 25], "children": [
+                        {"role": "menu item", "name": "DOS / Windows (CR LF)      ", "box": [1121, 501, 208, 25]}]},
+                    {"role": "menu item", "name": "Hidden", "box": [-1, -1, -1, -1]}]}]},
+            {"role": "text", "name": "", "box": [641, 353, 638, 449], "text": "bread\ntea\n"}]},
+        {"role": "dialog", "name": "Find and Replace", "box": [743, 427, 443, 310], "children": [
+            {"role": "text", "name": "", "box": [873, 464, 264, 34]},
+            {"role": "text", "name": "", "box": [873, 502, 264, 34]},
+            {"role": "check box", "name": "Match case", "box": [756, 578, 417, 22]},
+            {"role": "panel", "name": "Wrap around", "box": [958, 540, 200, 34], "children": [
+                {"role": "label", "name": "Wrap around", "box": [980, 545, 90, 20]}]},
+            {"role": "push button", "name": "Replace All", "box": [921, 696, 127, 34]}]}]}]}
+
+WINE = {"role": "desktop frame", "name": "Desktop", "class": "#32769", "box": [0, 0, 1920, 1080], "children": [
+    {"role": "dialog", "name": "Save As", "class": "#32770", "box": [1, 20, 565, 411], "children": [
+        {"role": "combo box", "name": "*.txt", "class": "ComboBoxEx32", "box": [190, 336, 270, 22], "children": [
+            {"role": "combo box", "name": "", "class": "ComboBox", "box": [190, 336, 270, 22], "children": [
+                {"role": "text", "name": "", "class": "Edit", "box": [197, 341, 241, 14], "text": "*.txt"}]}]},
+        {"role": "push button", "name": "Save", "class": "Button", "box": [470, 336, 81, 23]}]},
+    {"role": "frame", "name": "Untitled - Notepad", "class": "Notepad", "box": [0, 0, 1026, 769], "children": [
+        {"role": "text", "name": "", "class": "Edit", "box": [4, 42, 1018, 703]}]}]}
+
+
+def target(**fields) -> GuiTarget:
+    return GuiTarget.model_validate(fields)
+
+
+@pytest.mark.parametrize("tree, fields, box", [
+    (ATSPI, {"window": "notes.txt - Mousepad", "control": {"role": "text"}}, [641, 353, 638, 449]),
+    (ATSPI, {"window": "Find and Replace", "control": {"role": "text"}, "index": 1}, [873, 502, 264, 34]),
+    (ATSPI, {"control": {"role": "push button", "name": "replace all"}}, [921, 696, 127, 34]),
+    (ATSPI, {"window": "Mousepad", "text": "DOS / Windows (CR LF)"}, [1121, 501, 208, 25]),
+    (ATSPI, {"text": "Line Ending"}, [828, 451, 295, 25]),
+    (ATSPI, {"text": "wrap around"}, [980, 545, 90, 20]),  # the label, not the panel around it
+    (ATSPI, {"text": "*notes.txt - Mousepad"}, [110, 0, 200, 26]),  # the taskbar's button (not the frame: a window)
+    (ATSPI, {"window": "Find and Replace"}, [743, 427, 443, 310]),
+    (ATSPI, {"window": "~*/notes.txt - Mousepad"}, None),  # the title begins with the unsaved mark `*`
+    (ATSPI, {"control": {"role": "push button", "name": "Replace"}}, None),  # a name matches whole
+    (ATSPI, {"text": "Hidden"}, None),  # a box off the screen
+    (ATSPI, {"window": "Nothing like it", "control": {"role": "text"}}, None),
+    (WINE, {"window": "Save As", "control": {"class": "Edit"}}, [197, 341, 241, 14]),
+    (WINE, {"window": "Notepad", "control": {"class": "edit"}}, [4, 42, 1018, 703]),
+    (WINE, {"window": "Save As", "control": {"role": "push button", "name": "Save"}}, [470, 336, 81, 23]),
+    (WINE, {"window": "Save As", "control": {"role": "text", "text": "*.txt"}}, [197, 341, 241, 14]),
+    (WINE, {"window": "Save As", "control": {"role": "text", "text": "*.TXT"}, "index": 1}, None),
+])
+def test_targets_are_found_by_what_a_person_sees(tree, fields, box):
+    node, window = find_target(tree, target(**fields))
+    assert (node or {}).get("box") == box, (node, window)
+
+
+def test_text_patterns():
+    assert text_matches("Save", " save ") and not text_matches("Save", "Save As…")
+    assert text_matches("Save As*", "Save As…") and text_matches("*(exported)*GIMP", "*[a] (exported)-1.0 – GIMP")
+    assert text_matches("Line Ending", "Line Ending      ") and not text_matches("x", None)
+
+
+def test_the_centre_of_a_box_and_the_backend_of_a_label():
+    assert centre([641, 353, 638, 449]) == (960, 577)
+    assert backend_name("windows (wine)") == "wine" and backend_name("ubuntu (docker)") == "docker"
+
+
+class FakeView:
+    """A device's accessibility view whose trees come from a list (the last one repeats)."""
+
+    def __init__(self, *trees):
+        self.trees, self.reads = list(trees), 0
+
+    def tree(self):
+        self.reads += 1
+        return {"tree": self.trees[min(self.reads, len(self.trees)) - 1], "truncated": False}
+
+
+class FakeClock:
+    def __init__(self):
+        self.now = 0.0
+
+    def __call__(self):
+        return self.now
+
+    def sleep(self, seconds):
+        self.now += seconds
+
+
+def test_a_target_is_awaited_until_it_shows_and_no_longer():
+    empty = {"role": "desktop frame", "name": "", "children": []}
+    clock = FakeClock()
+    found = await_target(FakeView(empty, empty, ATSPI), target(window="Find and Replace"), 10, clock=clock,
+                         sleep=clock.sleep)
+    assert found.node is not None and found.reads == 3
+    clock = FakeClock()
+    missing = await_target(FakeView(empty), target(window="Find and Replace"), 2, clock=clock, sleep=clock.sleep)
+    assert missing.node is None and 2 <= clock.now < 2.5 and missing.reads >= 5
+    clock = FakeClock()
+    went = await_target(FakeView(ATSPI, empty), target(window="Find and Replace"), 5, gone=True, clock=clock,
+                        sleep=clock.sleep)
+    assert went.node is None and went.reads == 2
+    clock = FakeClock()
+    stays = await_target(FakeView(ATSPI), target(window="Find and Replace"), 1, gone=True, clock=clock,
+                         sleep=clock.sleep)
+    assert stays.node is not None and 1 <= clock.now < 1.5
+
+
+# -- the GUI oracle and who is told the GUI solution -----------------------------------------------------------
+class TreeDevice:
+    """Hands out a fixed tree; anything else it is asked is a failure of the test."""
+
+    def __init__(self, tree):
+        self.tree = tree
+
+    def a11y_tree(self, max_nodes=2000, timeout=5.0, showing_only=True):
+        return {"tree": self.tree, "truncated": False}
+
+
+def task_with(tmp_path: Path, steps, infeasible=None):
+    lib = load_library(library_with(tmp_path, gui_solution=steps, **({"gui_infeasible": infeasible} if infeasible
+                                                                      else {})))
+    return atomic_task(lib.templates[0], 0)
+
+
+def test_the_gui_oracle_answers_plain_actions_at_the_centre_of_its_targets(tmp_path):
+    task = task_with(tmp_path, [{"type": "CLICK", "target": {"window": "Mousepad", "control": {"role": "text"}}},
+                                {"type": "HOTKEY", "keys": ["ctrl", "End"]},
+                                {"type": "WAIT_FOR", "target": {"window": "Find and Replace"}}])
+    agent = GuiOracleAgent()
+    agent.reset(TaskContext(task_id=task.id, instruction=task.instruction, platforms=("ubuntu",)))
+    assert brief(agent, task.formatted_subtasks, {"ubuntu": TreeDevice(ATSPI)}, {"ubuntu": "ubuntu (docker)"})
+    assert all(isinstance(v, A11yView) for v in agent.views.values())
+    click = agent.act({}, [])
+    assert click.action.model_dump(exclude_none=True) == {"type": "CLICK", "x": 960, "y": 577, "button": "left",
+                                                           "clicks": 1}
+    assert click.extra["resolved"]["box"] == [641, 353, 638, 449] and click.extra["gui_step"] == 0
+    history = [HistoryEntry(index=0, platform="ubuntu", plan="", action=None)]
+    assert agent.act({}, history).action.type == "HOTKEY"
+    wait = agent.act({}, history)
+    assert wait.action.type == "WAIT" and wait.action.seconds == 0 and "shows after" in wait.reasoning
+    assert agent.act({}, history).action.type == "DONE"
+
+
+def test_a_refused_action_ends_the_gui_solution(tmp_path):
+    task = task_with(tmp_path, [{"type": "HOTKEY", "keys": ["no_such_key"]}, {"type": "HOTKEY", "keys": ["a"]}])
+    agent = GuiOracleAgent()
+    agent.reset(TaskContext(task_id=task.id, instruction="", platforms=("ubuntu",)))
+    brief(agent, task.formatted_subtasks, {"ubuntu": TreeDevice(ATSPI)}, {"ubuntu": "ubuntu (docker)"})
+    agent.act({}, [])
+    step = agent.act({}, [HistoryEntry(index=0, platform="ubuntu", plan="", action=None, error="unknown key")])
+    assert step.action.type == "FAIL" and "gui_solution[0]" in step.reasoning and "unknown key" in step.reasoning
+
+
+def test_the_gui_oracle_gives_up_where_there_is_no_gui_solution_or_it_is_infeasible(tmp_path):
+    plain = atomic_task(load_library(library_with(tmp_path / "a")).templates[0], 0)
+    infeasible = task_with(tmp_path / "b", [GOOD_STEP], {"docker": "the editor cannot"})
+    for task, words in ((plain, "has no GUI solution yet"), (infeasible, "on docker: the editor cannot")):
+        agent = GuiOracleAgent()
+        agent.reset(TaskContext(task_id=task.id, instruction="", platforms=("ubuntu",)))
+        assert brief(agent, task.formatted_subtasks, {"ubuntu": TreeDevice(ATSPI)}, {"ubuntu": "ubuntu (docker)"})
+        step = agent.act({}, [])
+        assert step.action.type == "FAIL" and words in step.reasoning, step.reasoning
+    plan, why = gui_plan(infeasible.formatted_subtasks, {"ubuntu": "ubuntu (other)"})
+    assert why is None and len(plan) == 1  # infeasible on docker only
+
+
+def test_only_the_built_in_gui_oracle_is_told_the_gui_solution(tmp_path):
+    """`brief` recognises the class object: a subclass, a look-alike or the name gets nothing, and the oracle is
+    handed the devices, not the GUI plan."""
+    task = task_with(tmp_path, [GOOD_STEP])
+    device = TreeDevice(ATSPI)
+
+    class Sub(GuiOracleAgent):
+        __slots__ = ()
+
+    class Named:
+        name = "gui-oracle"
+        queue = views = None
+
+    for agent in (Sub(), Named()):
+        assert not brief(agent, task.formatted_subtasks, {"ubuntu": device}, {"ubuntu": "ubuntu (docker)"})
+        assert not getattr(agent, "queue", None) and not getattr(agent, "views", None)
+    oracle = OracleAgent()
+    assert brief(oracle, task.formatted_subtasks, {"ubuntu": device})
+    assert oracle.devices == {"ubuntu": device} and all(item.kind != "gui" for item in oracle.queue)
+    gui = GuiOracleAgent()
+    assert brief(gui, task.formatted_subtasks, {"ubuntu": device}, {"ubuntu": "ubuntu (docker)"})
+    assert not hasattr(gui, "devices") and len(gui.queue) == 1
+    assert not hasattr(gui, "__dict__")  # slots: its methods cannot be swapped on an instance
