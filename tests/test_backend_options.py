@@ -139,10 +139,11 @@ def test_the_windows_vm_takes_its_settings_as_options(monkeypatch):
         monkeypatch.delenv(var, raising=False)
     assert {"version", "ram", "cpus", "image", "disks"} <= set(B.option_keys("windows"))
     kvm = W.KVM.configure({"version": "10l", "ram": "8G", "cpus": "4", "disks": "/srv/win"})
-    env = kvm.container_options["environment"]
+    s = kvm.settings  # what dockur installs the golden with, and the runner restores its tasks with
+    env = W.real.environment(s)
     assert (env["VERSION"], env["RAM_SIZE"], env["CPU_CORES"]) == ("10l", "8G", "4")
-    assert kvm.booted_memory_mb == 8192 + 256  # a pre-warm keeps the VM's RAM free
-    assert "/srv/win/golden" in kvm.container_options["volumes"]
+    assert W.real.ram_mb(s) == 8192 and s.golden == Path("/srv/win/golden")
+    assert kvm.booted_memory_mb == 8192 + 160 and kvm.memory == f"{8192 + 512}m"  # a pre-warm keeps the VM's RAM free
     why = kvm.unavailable()
     assert "/srv/win/golden" in why or "/dev/kvm" in why, why  # the golden it looks for is the option's
     monkeypatch.setenv("JARVIS_WINDOWS_VERSION", "10l")

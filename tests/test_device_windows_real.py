@@ -1,18 +1,24 @@
 """The real Windows backend (`--windows-backend kvm`), which cannot boot here (no Windows image, no KVM that runs
-one): its settings, the container specifications of preparation and of a task, what preparation checks and
-refuses, its first-boot (OEM) scripts and bundle, when it says it cannot run, and the live gate (`make
-test-windows-real`), skipped here with the reason.
+one): its settings, the container specifications of preparation and of a task (the VM runner's restore of the
+golden's memory snapshot), what preparation checks and refuses and in which order, its first-boot (OEM) scripts and
+bundle, when it says it cannot run, what its results record, and the live gate (`make test-windows-real`), skipped
+here with the reason.
 
 Where dockur's entry would run, a real container plays it: its rules are transcribed from dockur/windows v6.05
 (the pinned `dockurr/windows:6.05`, commit efe47da) with the file they come from; Docker, tini, bash and the
-signals are real. The OS and program probes and the logon script run on the Wine device (the same control server
-and `cmd`; Wine's `cmd` is not Windows', and `net`/`nslookup` are stubs there)."""
+signals are real. Where the runner would save Windows' memory, it saves a small Linux guest's under TCG through the
+same code (`tests/test_vm_runner.py` proves its restore). The OS and program probes and the logon script run on the
+Wine device (the same control server and `cmd`; Wine's `cmd` is not Windows', and `net`/`nslookup` are stubs
+there)."""
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import json
 import os
+import re
+import struct
 import subprocess
 import sys
 import time
@@ -24,6 +30,7 @@ from pathlib import Path
 import pytest
 
 from jarvis_pytest.devices.backend import backend_for
+from jarvis_pytest.devices.vm import windows as vm_windows
 from jarvis_pytest.devices.windows import real
 from jarvis_pytest.errors import ConfigError, InfrastructureError
 
@@ -43,10 +50,52 @@ def golden_of(tmp_path: Path, **state: str | bytes) -> real.WindowsVMSettings:
 
 
 # What a dockur v6.05 installation of VERSION=10 leaves in /storage (src/install.sh finishInstall, src/power.sh
-# markWindowsBooted, qemu src/boot.sh and src/network.sh), our READY, and install media that must not be copied.
+# markWindowsBooted, qemu src/boot.sh and src/network.sh).
 INSTALLED = {"data.qcow2": b"QFI\xfb" + b"\x01" * 64, "windows.base": "win10x64.iso\n", "windows.boot": "",
              "windows.ver": "6.05\n", "windows.rom": b"\x55" * 16, "windows.vars": b"\xaa" * 16,
-             "windows.mac": "02:7a:ec:01:02:03\n", "windows.hv": "Y\n"}
+             "windows.mac": "02:7A:EC:01:02:03\n"}
+QEMU = "QEMU emulator version 7.2.22 (Debian 1:7.2+dfsg-7+deb12u18+b3)"
+
+
+def save_memory(s: real.WindowsVMSettings) -> dict:
+    """What the runner leaves in `<golden>/snapshot/` after saving the memory of the golden's Windows (small
+    stand-ins for the disk overlay and the state stream; the record a restore checks), and what READY records of it
+    (`real.save_snapshot`'s answer)."""
+    from jarvis_pytest.devices.vm import golden as vm_golden
+
+    profile = real.task_profile(s)
+    snap = s.golden / vm_golden.SNAPSHOT
+    snap.mkdir()
+    (snap / vm_golden.DISK).write_bytes(b"QFI\xfb" + b"\x02" * 64)
+    (snap / "windows.vars").write_bytes(b"\xaa" * 16)
+    desc = json.dumps({"devices": [{"name": "timer"}]}).encode()
+    (snap / vm_golden.STATE).write_bytes(vm_golden.MAGIC + b"\x07" + b"\x00" * 64 + b"\x00"
+                                         + bytes([vm_golden.VMDESC]) + struct.pack(">I", len(desc)) + desc)
+    files = {rel: vm_golden.file_stamp(s.golden / rel) for rel in vm_golden.recorded_files(s.golden, profile)}
+    state = snap / vm_golden.STATE
+    record = vm_golden.Record(profile=profile, qemu=QEMU, source={"dockur_release": "6.05"},
+                              state_bytes=state.stat().st_size, state_sha256=vm_golden.sha256_of(state), files=files,
+                              created=time.time(), timings={"boot_to_ready": 40.0, "save": 3.0})
+    vm_golden.write_record(s.golden, record)
+    return {"profile": profile.name, "qemu": QEMU, "state_bytes": record.state_bytes,
+            "state_sha256": record.state_sha256, "saved": record.created, "timings": record.timings,
+            "memory_mb": profile.memory_mb, "cores": real.cores(s)}
+
+
+def prepared(tmp_path: Path, s: real.WindowsVMSettings | None = None, **state: str | bytes | None) -> \
+        real.WindowsVMSettings:
+    """A golden as preparation leaves it: dockur's finished installation (`INSTALLED`, with `state`'s changes),
+    its memory snapshot, READY last."""
+    s = s or real.settings({}, disks=str(tmp_path / "disks"))
+    s.golden.mkdir(parents=True)
+    for name, content in {**INSTALLED, **state}.items():
+        if content is not None:
+            path = s.golden / name
+            path.write_bytes(content) if isinstance(content, bytes) else path.write_text(content)
+    ready = real.finalise(s, FACTS)
+    ready["snapshot"] = save_memory(s)
+    real.mark_ready(s, ready)
+    return s
 
 
 # -- settings -----------------------------------------------------------------------------------------------------
@@ -74,6 +123,7 @@ def test_settings_come_from_options_over_the_environment_and_name_their_origin()
     ({"JARVIS_WINDOWS_VERSION": "11"}, "JARVIS_WINDOWS_VERSION", "WordPad"),
     ({"JARVIS_WINDOWS_IMAGE": "dockurr/windows"}, "JARVIS_WINDOWS_IMAGE", "not pinned"),
     ({"JARVIS_WINDOWS_IMAGE": "dockurr/windows:latest"}, "JARVIS_WINDOWS_IMAGE", "not pinned"),
+    ({"JARVIS_WINDOWS_IMAGE": "dockurr/windows:5.14"}, "JARVIS_WINDOWS_IMAGE", "not dockur/windows 6.05"),
     ({"JARVIS_WINDOWS_RAM": "lots"}, "JARVIS_WINDOWS_RAM", "not an amount of memory"),
     ({"JARVIS_WINDOWS_CPUS": "0"}, "JARVIS_WINDOWS_CPUS", "not a number of cores"),
     ({"JARVIS_WINDOWS_DISK_SIZE": "big"}, "JARVIS_WINDOWS_DISK_SIZE", "not a disk size"),
@@ -94,35 +144,46 @@ def test_a_bad_setting_is_one_error_naming_it_and_the_fix(monkeypatch, tmp_path,
         real.prepare()
 
 
-def test_pinned_images_by_digest_or_other_tags_are_accepted():
-    for image in ("dockurr/windows:5.14", "ghcr.io/dockur/windows:6.05", "registry:5000/windows:6.05",
-                  "dockurr/windows@sha256:" + "0" * 64):
+def test_the_6_05_release_is_accepted_from_a_mirror_or_by_digest_and_no_other():
+    for image in ("ghcr.io/dockur/windows:6.05", "registry:5000/windows:6.05", "dockurr/windows@sha256:" + "0" * 64):
         assert real.settings({}, image=image).problem() is None, image
-    assert real.settings({}, image="registry:5000/windows").problem() is not None  # a port is not a tag
+    # a digest's release is known once it installed (windows.ver): the runner then refuses another (test_vm_runner)
+    for image in ("dockurr/windows:5.14", "dockurr/windows:6.06", "registry:5000/windows"):  # a port is not a tag
+        assert real.settings({}, image=image).problem() is not None, image
+    assert real.DOCKUR_TAG == "6.05" == vm_windows.DOCKUR_RELEASE  # the release installed is the machine restored
 
 
-@pytest.mark.parametrize("ram, mb", [(None, 4096), ("6G", 6144), ("6144M", 6144), ("8gb", 8192),
-                                      (str(3 * 2**30), 3072), ("lots", 4096)])
-def test_a_pre_warm_of_the_vm_needs_its_ram_free(monkeypatch, ram, mb):
-    if ram is None:
-        monkeypatch.delenv("JARVIS_WINDOWS_RAM", raising=False)
-    else:
-        monkeypatch.setenv("JARVIS_WINDOWS_RAM", ram)
-    assert real.ram_mb() == mb  # what RAM_SIZE gives the VM; the pool keeps it (and QEMU's own) free to pre-warm
+@pytest.mark.parametrize("ram, mb", [(None, 4096), ("6G", 6144), ("6144M", 6144), ("8gb", 8192), ("6 G", 6144),
+                                      ("4", 4096), ("129", 129 * 1024), ("6144", 6144), ("2.5G", 2560),
+                                      ("4194304K", 4096), ("lots", 4096)])
+def test_the_vms_ram_is_read_as_dockur_reads_ram_size(ram, mb):
+    """qemus/qemu v7.48 src/memory.sh:20-49: spaces dropped, a bare number below 130 is GiB, any other bare number
+    MiB, an IEC suffix with an optional B. The runner restores with it; the pool keeps it (and QEMU's) free."""
+    s = real.settings({}) if ram is None else real.settings({}, ram=ram)
+    assert real.ram_mb(s) == mb
+    kvm = backend_for("windows", "kvm", {} if ram is None or ram == "lots" else {"ram": ram})
+    if ram != "lots":
+        assert kvm.memory == f"{mb + 512}m" and kvm.booted_memory_mb == mb + 160
+
+
+def test_the_vms_settings_come_from_the_settings_not_the_environment(monkeypatch):
+    monkeypatch.setenv("JARVIS_WINDOWS_RAM", "8G")
+    monkeypatch.setenv("JARVIS_WINDOWS_CPUS", "64")
+    s = real.settings({}, ram="6G", cpus="3")
+    assert real.ram_mb(s) == 6144 and real.ram_mb(real.settings()) == 8192
+    assert real.cores(s) == min(3, os.cpu_count()) and real.cores(real.settings()) == os.cpu_count()  # init.sh:94-97
 
 
 # -- the containers -----------------------------------------------------------------------------------------------
-def test_dockur_gets_the_same_windows_and_the_librarys_screen_when_preparing_and_for_tasks(tmp_path):
+def test_dockur_installs_windows_10_at_the_librarys_screen(tmp_path):
     s = real.settings({}, disks=str(tmp_path))
     env = real.environment(s)
     assert (env["WIDTH"], env["HEIGHT"]) == ("1920", "1080")  # the library's and grounders' screen, not 1280x720
     assert env["VERSION"] == "10" and env["DISK_FMT"] == "qcow2" and env["USERNAME"] == "user"
     assert env["USER_PORTS"] == "5000"  # forwarded into the VM where dockur falls back to user-mode networking
     prep = real.preparation_options(s, tmp_path / "oem")
-    task = real.task_container_options(None, s)
-    assert prep["environment"] == task["environment"] == env  # a VERSION that differs would install anew
-    assert prep["image"] == s.image == "dockurr/windows:6.05"
-    assert "/dev/kvm" in prep["devices"] and "/dev/kvm" in task["devices"] and "NET_ADMIN" in task["cap_add"]
+    assert prep["environment"] == env and prep["image"] == s.image == "dockurr/windows:6.05"
+    assert "/dev/kvm" in prep["devices"] and "NET_ADMIN" in prep["cap_add"]
 
 
 def test_preparation_runs_dockur_on_the_golden_and_stops_it_with_sigterm(tmp_path):
@@ -135,68 +196,90 @@ def test_preparation_runs_dockur_on_the_golden_and_stops_it_with_sigterm(tmp_pat
     assert set(prep["ports"]) == {"5000/tcp", "8006/tcp"} and all(h == "127.0.0.1" for h, _ in prep["ports"].values())
 
 
-def test_a_task_container_copies_dockurs_state_and_overlays_the_golden_disk(tmp_path):
-    s = real.settings({}, disks=str(tmp_path))
-    opts = real.task_container_options("vol-1", s)
-    assert opts["volumes"][str(s.golden)] == {"bind": "/golden", "mode": "ro"}  # never written by a task
-    assert opts["volumes"]["vol-1"] == {"bind": "/storage", "mode": "rw"}
-    assert opts["entrypoint"][:2] == ["/bin/sh", "-c"] and opts["entrypoint"][2] == real.TASK_ENTRY
-    lines = real.TASK_ENTRY.splitlines()
-    assert lines[-2].split() == ["qemu-img", "create", "-q", "-f", "qcow2", "-F", "qcow2", "-b", "/golden/data.qcow2",
-                                 "/storage/data.qcow2"]
-    assert lines[-1] == "exec /usr/bin/tini -s /run/entry.sh"  # dockur's image's ENTRYPOINT takes over as PID 1
+class _Boot:
+    """Records what a backend's boot would hand the engine (`infra.containers.boot_container`)."""
+
+    def __init__(self):
+        self.calls: list = []
+
+    def __call__(self, backend, request):
+        from jarvis_pytest.infra.containers import BootedDevice
+
+        self.calls.append((backend, request))
+        return BootedDevice(container=None, url="http://127.0.0.1:1", backend=backend)
 
 
-# A stand-in for dockur's image in the task container: qemu-img makes an "overlay" naming its backing file, tini
-# execs its program, and /run/entry.sh decides as dockur v6.05's startWindows does (src/install.sh needsInstall, for
-# a VERSION without custom media: windows.base must name the medium of the same VERSION, then `hasData &&
-# hasBootMarker` boots; otherwise it installs, deleting data.*, windows.*, *.rom, *.vars and downloading the ISO).
-FAKE_QEMU_IMG = """#!/bin/sh
-for a; do last=$a; done
-backing=$(echo "$@" | sed 's/.*-b \\([^ ]*\\).*/\\1/')
-printf 'QFI overlay of %s' "$backing" > "$last"
-"""
-FAKE_TINI = """#!/bin/sh
-[ "$1" = -s ] && shift
-exec "$@"
-"""
-FAKE_DOCKUR_ENTRY = """#!/bin/bash
-case "${VERSION,,}" in
-  10|10p|win10|win10x64) id=win10x64 ;;
-  10l|ltsc10|10ltsc) id=win10x64-enterprise-ltsc-eval ;;
-  *) id="$VERSION" ;;
-esac
-base=$(cat /storage/windows.base 2>/dev/null || true)
-if [ -n "$base" ] && [ "${base,,}" != "${id,,}.iso" ]; then
-  echo "dockur: install ($base is not $id.iso)"
-elif [ -s /storage/data.qcow2 ] && [ -f /storage/windows.boot ]; then
-  echo "dockur: boot"
-else
-  echo "dockur: install (deletes data.* and windows.*, downloads $id.iso)"
-fi
-"""
+def boot_request():
+    from jarvis_pytest.infra.containers import BootRequest
+
+    return BootRequest(docker=None, name="t", network=None, labels={}, memory=None, cpus=None, ready_timeout=1)
 
 
-def run_task_entry(docker, image: str, s: real.WindowsVMSettings, tmp_path: Path) -> tuple[int, str, Path]:
-    """The task container's entry (its real options: entrypoint, environment, the golden read-only, a storage
-    folder) in a container of `image` with the stand-ins above; its exit code, log and storage folder."""
-    fakes, storage = tmp_path / "fakes", tmp_path / "storage"
-    fakes.mkdir()
-    storage.mkdir()
-    for name, text in (("qemu-img", FAKE_QEMU_IMG), ("tini", FAKE_TINI), ("entry.sh", FAKE_DOCKUR_ENTRY)):
-        (fakes / name).write_text(text)
-        (fakes / name).chmod(0o755)
-    opts = real.task_container_options(str(storage), s)
-    volumes = {**opts["volumes"], str(fakes / "qemu-img"): {"bind": "/usr/local/bin/qemu-img", "mode": "ro"},
-               str(fakes / "tini"): {"bind": "/usr/bin/tini", "mode": "ro"},
-               str(fakes / "entry.sh"): {"bind": "/run/entry.sh", "mode": "ro"}}
-    c = docker.containers.run(image, entrypoint=opts["entrypoint"], environment=opts["environment"],
-                              volumes=volumes, detach=True, labels=TEST_LABEL, network_mode="none")
-    try:
-        code = c.wait(timeout=60)["StatusCode"]
-        return code, c.logs().decode(), storage
-    finally:
-        c.remove(force=True)
+def test_a_task_vm_is_the_runners_restore_of_the_golden_snapshot(monkeypatch, tmp_path):
+    """No dockur at task time: the kvm backend boots a VM runner container that restores the golden's memory
+    snapshot into an overlay of the golden disk, on dockur 6.05's machine with the settings' RAM and cores."""
+    import jarvis_pytest.infra.containers as ctr
+    from jarvis_pytest.devices.vm.profile import Profile
+
+    s = prepared(tmp_path)
+    monkeypatch.setattr(real.os.path, "exists", lambda p: True)  # as on a machine with /dev/kvm
+    kvm = backend_for("windows", "kvm", {"disks": str(s.disks), "ram": "4G", "cpus": "2"})
+    assert kvm.unavailable() is None
+    boot = _Boot()
+    monkeypatch.setattr(ctr, "boot_container", boot)
+    kvm.boot(boot_request())
+    (backend, _), = boot.calls
+    opts = backend.container_options
+    assert backend.image_ref == "jarvis/vm-runner:latest" and backend.port == 5000  # our image, not dockur's
+    assert opts["command"] == ["restore"] and "entrypoint" not in opts  # the runner's entry: no dockur at task time
+    assert opts["volumes"] == {str(s.golden.resolve()): {"bind": "/golden", "mode": "ro"}}  # never written by a task
+    assert opts["devices"] == ["/dev/kvm:/dev/kvm:rwm"] and "cap_add" not in opts  # slirp: no NET_ADMIN, no tap
+    spec = json.loads(opts["environment"]["JARVIS_VM"])
+    profile = Profile.from_dict(spec["profile"])
+    assert profile == real.task_profile(s) and profile.name == "windows-10-dockur-6.05"
+    assert profile.memory_mb == 4096 and profile.smp.startswith(f"{real.cores(s)},")
+    assert spec["ready_timeout"] == real.READY_TIMEOUT == kvm.ready_timeout
+    # what it restores: the saved state whose record names this profile (the same check the runner makes)
+    from jarvis_pytest.devices.vm import golden as vm_golden
+
+    assert vm_golden.check(s.golden, profile).state_sha256 == real.ready_record(s)["snapshot"]["state_sha256"]
+
+
+def test_a_golden_the_runner_cannot_restore_is_refused_before_any_container(monkeypatch, tmp_path):
+    import jarvis_pytest.infra.containers as ctr
+
+    monkeypatch.setattr(real.os.path, "exists", lambda p: True)
+    boot = _Boot()
+    monkeypatch.setattr(ctr, "boot_container", boot)
+
+    def refused(s: real.WindowsVMSettings, given: dict, words: str) -> None:
+        kvm = backend_for("windows", "kvm", {"disks": str(s.disks), **given})
+        assert words in (kvm.unavailable() or ""), kvm.unavailable()
+        request = boot_request()
+        with pytest.raises(ConfigError, match=re.escape(words)):
+            kvm.boot(request)
+        assert boot.calls == [] and request.started == []
+
+    s = prepared(tmp_path / "a")
+    refused(s, {"ram": "6G"}, "cannot be restored with these settings (windows.ram 6G")  # saved with 4096 MiB
+    (s.golden / "snapshot" / "vmstate").write_bytes(b"QEVM")                            # a damaged state
+    refused(s, {}, "the memory state has 4 bytes")
+    s = prepared(tmp_path / "b")
+    (s.golden / "windows.ver").write_text("6.04\n")  # a golden another dockur release installed
+    refused(s, {}, "installed by dockur/windows '6.04'")
+    s = prepared(tmp_path / "c")
+    ready = json.loads(s.ready_mark.read_text())
+    s.ready_mark.write_text(json.dumps({**ready, "format": 2}))  # an earlier preparation: dockur booted its tasks
+    refused(s, {}, "without the memory snapshot tasks are restored from")
+
+
+def test_ready_needs_the_memory_snapshot(tmp_path):
+    s = golden_of(tmp_path, **INSTALLED)
+    ready = real.finalise(s, FACTS)
+    assert not s.ready_mark.exists()  # finalise checks dockur's golden; READY waits for the snapshot
+    with pytest.raises(InfrastructureError, match="no memory snapshot"):
+        real.mark_ready(s, ready)
+    assert not s.ready_mark.exists()
 
 
 @pytest.fixture(scope="module")
@@ -204,29 +287,6 @@ def docker(device_images):
     from jarvis_pytest.infra.engine import client
 
     return client()
-
-
-@pytest.mark.containers
-def test_a_task_boots_the_installed_windows_instead_of_installing_it(docker, device_images, tmp_path):
-    s = golden_of(tmp_path, **INSTALLED, READY="{}", **{"win10x64.iso": "medium kept with REMOVE=N"})
-    code, log, storage = run_task_entry(docker, device_images["transfer"], s, tmp_path)
-    assert code == 0 and "dockur: boot" in log, log
-    copied = sorted(p.name for p in storage.iterdir())
-    assert copied == sorted(INSTALLED), copied  # every state file, no READY, no install medium
-    for name, content in INSTALLED.items():
-        if name != "data.qcow2":
-            want = content if isinstance(content, bytes) else content.encode()
-            assert (storage / name).read_bytes() == want, name
-    assert (storage / "data.qcow2").read_text() == "QFI overlay of /golden/data.qcow2"  # the disk is not copied
-
-
-@pytest.mark.containers
-def test_a_task_on_a_golden_without_windows_boot_stops_before_dockur_installs(docker, device_images, tmp_path):
-    state = {k: v for k, v in INSTALLED.items() if k != "windows.boot"}
-    s = golden_of(tmp_path, **state)
-    code, log, storage = run_task_entry(docker, device_images["transfer"], s, tmp_path)
-    assert code == 3 and "dockur:" not in log and "windows.boot" in log and "prepare it again" in log, log
-    assert list(storage.iterdir()) == []
 
 
 # dockur v6.05's entry as preparation meets it, played in bash under tini (Docker's --init, the tini dockur's image
@@ -289,13 +349,9 @@ def test_preparation_shuts_windows_down_and_keeps_the_finished_golden(docker, de
         c.remove(force=True)
     assert "Received SIGTERM" in log and "Shutdown completed" in log, log
     ready = real.finalise(s, FACTS, log)
-    assert json.loads(s.ready_mark.read_text()) == ready
     assert ready["state"] == ["data.qcow2", "windows.base", "windows.boot", "windows.vars", "windows.ver"]
     assert ready["dockur_version"] == "6.05" and ready["windows_id"] == "win10x64"
-    assert real.golden_problem(s) is None
-    # what results record of the device: the image by digest, the Windows the device itself reported
-    assert real.provenance(s) == {"image": FACTS["image"], "os": FACTS["os"], "version": "10",
-                                  "dockur_version": "6.05"}
+    assert not s.ready_mark.exists()  # dockur's golden is finished; READY comes after the memory snapshot
 
 
 @pytest.mark.containers
@@ -322,8 +378,8 @@ def test_ready_is_refused_for_a_golden_of_another_version(tmp_path):
 
 
 def test_preparing_again_first_removes_the_old_ready(monkeypatch, tmp_path):
-    s = golden_of(tmp_path, **INSTALLED)
-    real.finalise(s, FACTS)
+    s = prepared(tmp_path)
+    assert s.ready_mark.exists()
     monkeypatch.setenv(real.DOWNLOAD_ENV, "1")
     monkeypatch.setattr(real.os.path, "exists", lambda p: True)
     import jarvis_pytest.infra.engine as engine
@@ -342,7 +398,7 @@ def test_preparation_end_to_end_refuses_a_windows_that_did_not_finish(monkeypatc
     """`prepare` with a real engine, the Wine device image standing in for dockur's (it answers as the VM's control
     server does, and writes none of dockur's state): it runs, waits for the server, checks the device, stops it
     and then refuses READY, naming what is missing with the container's last lines; nothing is left running."""
-    tag = "jarvis/windows:prepare-test"  # a pinned-looking tag of the Wine image
+    tag = "jarvis/windows-prepare-test:6.05"  # the Wine image under dockur's tag
     docker.images.get(device_images["windows"]).tag(tag)
     s = real.settings({}, disks=str(tmp_path / "disks"), image=tag)
     monkeypatch.setenv(real.DOWNLOAD_ENV, "1")
@@ -359,6 +415,92 @@ def test_preparation_end_to_end_refuses_a_windows_that_did_not_finish(monkeypatc
     assert "is not finished: no data.qcow2; no windows.boot" in text and "last lines of the preparing" in text, text
     assert not s.ready_mark.exists()
     assert docker.containers.list(all=True, filters={"label": "org.jarvis.role=prepare"}) == []
+
+
+@pytest.mark.containers
+def test_preparation_saves_the_memory_snapshot_before_ready(monkeypatch, docker, device_images, tmp_path):
+    """`prepare` end to end, in its order: dockur installs (the Wine image plays it and, on SIGTERM, leaves dockur
+    6.05's state, as `test_preparation_shuts_windows_down_and_keeps_the_finished_golden` shows dockur's entry
+    does), `finalise` checks dockur's golden, the VM runner cold-boots it and saves its memory (`save_snapshot`:
+    the real runner container and code, a small Linux guest under TCG standing in for Windows, which cannot run
+    here), and READY comes last, recording the snapshot and the dockur image it was installed by."""
+    import uuid
+
+    from jarvis_pytest.devices.vm import golden as vm_golden
+    from jarvis_pytest.devices.vm import testguest
+    from jarvis_pytest.infra.images import image_tag
+
+    tag = f"jarvis/windows-prepare-test-{uuid.uuid4().hex[:6]}:6.05"  # the Wine image under dockur's tag
+    docker.images.get(device_images["windows"]).tag(tag)
+    s = real.settings({}, disks=str(tmp_path / "disks"), image=tag)
+    stand_in = dataclasses.replace(testguest.PROFILE, disk="data.qcow2")  # the guest's disk where dockur's lies
+    guest = tmp_path / "guest"
+    guest.mkdir()
+    testguest._extract(docker, image_tag(testguest.GUEST_IMAGE), guest)
+    monkeypatch.setenv(real.DOWNLOAD_ENV, "1")
+    monkeypatch.setattr(real.os.path, "exists", lambda p: True)  # as on a machine with /dev/kvm
+    monkeypatch.setattr(real, "_devices", lambda: [])
+    monkeypatch.setattr(real, "kvm_programs", lambda: ["notepad", "wordpad"])  # what Wine has
+    monkeypatch.setattr(real, "STOP_GRACE", 5)
+    monkeypatch.setattr(real, "SETTLE", 0.0)
+    monkeypatch.setattr(vm_windows, "HOSTS_ENTRY", f"echo {stand_in.drive_ip} transfer >> /etc/hosts && "
+                                                   "grep -c ' transfer$' /etc/hosts")
+    windows_profile = vm_windows.profile_from_storage
+
+    def profile(storage, **kw):  # dockur 6.05's state is checked as for Windows; the Linux guest boots
+        windows_profile(storage, **kw)
+        return stand_in
+
+    monkeypatch.setattr(vm_windows, "profile_from_storage", profile)
+    order: list[str] = []
+
+    def spy(name: str, check=lambda: None):
+        original = getattr(real, name)
+
+        def call(*args, **kwargs):
+            order.append(name)
+            check()
+            return original(*args, **kwargs)
+
+        monkeypatch.setattr(real, name, call)
+
+    stop_vm = real.stop_vm
+
+    def stop_like_dockur(container, grace=None):  # dockur 6.05 on SIGTERM: Windows shut down, windows.boot written
+        order.append("stop_vm")
+        log = stop_vm(container, grace)
+        for name, content in INSTALLED.items():
+            if name != "data.qcow2":
+                path = s.golden / name
+                path.write_bytes(content) if isinstance(content, bytes) else path.write_text(content)
+        for name, target in (("disk.qcow2", "data.qcow2"), ("vmlinuz", "vmlinuz"), ("initrd.img", "initrd.img")):
+            (s.golden / target).write_bytes((guest / name).read_bytes())
+        return log
+
+    def no_ready():
+        assert not s.ready_mark.exists(), "READY before the memory snapshot"
+
+    monkeypatch.setattr(real, "stop_vm", stop_like_dockur)
+    spy("finalise", no_ready)
+    spy("save_snapshot", no_ready)
+    spy("mark_ready", lambda: vm_golden.check(s.golden, stand_in))  # the snapshot is whole before READY
+    try:
+        disk = real.prepare(timeout=120, s=s)
+    finally:
+        docker.images.remove(tag)
+    assert order == ["stop_vm", "finalise", "save_snapshot", "mark_ready"]
+    assert disk == str(s.golden / "data.qcow2")
+    record = vm_golden.check(s.golden, stand_in)
+    ready = real.ready_record(s)
+    assert ready["snapshot"]["state_sha256"] == record.state_sha256 and ready["snapshot"]["qemu"] == record.qemu
+    assert ready["image"]["ref"] == tag and ready["dockur_version"] == "6.05" and ready["os"]["windows"] == "10"
+    assert record.source["dockur_release"] == "6.05" and record.source["image"]["ref"] == tag
+    assert len(record.outputs) == 1 and int(record.outputs[0]) >= 1  # `transfer` in the guest's hosts file
+    assert record.profile.memory_mb == 256  # the stand-in's; Windows' is the settings' RAM (test_vm_runner)
+    assert real.golden_problem(s) is None  # a task may restore it
+    assert real.provenance(s)["snapshot"]["state_sha256"] == record.state_sha256
+    for role in ("prepare", "vm-prepare"):
+        assert docker.containers.list(all=True, filters={"label": f"org.jarvis.role={role}"}) == []
 
 
 def test_image_record_keeps_the_registry_digest_of_the_pinned_tag():
@@ -380,33 +522,66 @@ def test_backend_says_why_it_cannot_run(monkeypatch, tmp_path):
         return backend_for("windows", "kvm").unavailable()
 
     kvm = backend_for("windows", "kvm")
-    assert kvm.image_kind == "prepared" and not kvm.stand_in and kvm.label == "windows (kvm)"
-    assert kvm.image == "dockurr/windows:6.05"
+    assert not kvm.stand_in and kvm.label == "windows (kvm)"
+    assert kvm.image_ref == "jarvis/vm-runner:latest"  # built here; dockur's image only installs the golden
     assert backend_for("windows", "real").name == "kvm"  # the issue's name for it
     assert "jarvis images build --only windows-real" in kvm.how_to_run
     monkeypatch.setenv("JARVIS_WINDOWS_DISKS", str(tmp_path / "disks"))
     monkeypatch.setattr(real.os.path, "exists", lambda p: True)
     assert "no prepared Windows disk" in (why() or "")
-    s = golden_of(tmp_path, **INSTALLED)
-    real.finalise(s, FACTS)
+    s = prepared(tmp_path, real.settings({}, disks=str(tmp_path / "disks")))
     assert why() is None
-    monkeypatch.setenv("JARVIS_WINDOWS_VERSION", "10l")  # dockur would install LTSC over it
-    assert "dockur would install anew" in (why() or "")
+    monkeypatch.setenv("JARVIS_WINDOWS_VERSION", "10l")  # another Windows than the golden's
+    assert "the settings ask for '10l'" in (why() or "")
     monkeypatch.setenv("JARVIS_WINDOWS_VERSION", "win10")  # another name of the same Windows
     assert why() is None
-    monkeypatch.setenv("JARVIS_WINDOWS_IMAGE", "dockurr/windows:5.14")
+    monkeypatch.setenv("JARVIS_WINDOWS_IMAGE", "registry:5000/windows:6.05")
     assert "prepared by dockurr/windows:6.05" in (why() or "")
     monkeypatch.delenv("JARVIS_WINDOWS_IMAGE")
     (s.golden / "windows.boot").unlink()
     assert "lacks windows.boot" in (why() or "")
     s.ready_mark.write_text("prepared 2026-11-01 from dockurr/windows VERSION=11\n")  # an earlier READY: disk only
-    assert "without dockur's state" in (why() or "")
+    assert "without the memory snapshot" in (why() or "")
     monkeypatch.setattr(real.os.path, "exists", lambda p: False)
     assert "no /dev/kvm" in why()
     # auto picks the first backend that can run: here the Wine stand-in
     monkeypatch.setenv("JARVIS_WINDOWS_DISKS", str(tmp_path / "nothing"))
     auto = backend_for("windows")
     assert auto.name == "wine" and auto.stand_in and auto.label == "windows (wine)"
+
+
+def test_images_build_prepares_windows_with_the_settings_a_run_would_use(monkeypatch):
+    """`jarvis images build --only windows-real --backend-option windows.KEY=VALUE`: the VM runner image is built
+    first, then `prepare(s=...)` gets the kvm backend's settings: each option, else its variable, else the default."""
+    import jarvis_pytest.infra.engine as engine
+    from jarvis_pytest.infra import images
+
+    seen: dict = {"built": []}
+    monkeypatch.setattr(engine, "client", lambda **kw: None)
+    monkeypatch.setattr(images, "ensure_base", lambda c, force=False: "base")
+    monkeypatch.setattr(images, "build_image", lambda c, spec, base, force=False:
+                        seen["built"].append(spec.name) or f"jarvis/{spec.name}:latest")
+    monkeypatch.setattr(real, "prepare", lambda timeout=0, s=None: seen.setdefault("s", s) and "golden")
+    monkeypatch.setenv("JARVIS_WINDOWS_CPUS", "4")
+    monkeypatch.delenv("JARVIS_WINDOWS_RAM", raising=False)
+    built = images.build_all(["windows-real"], options={"windows": {"ram": "6G", "disks": "/srv/win"}})
+    assert seen["built"] == ["vm-runner"] and built == {"vm-runner": "jarvis/vm-runner:latest",
+                                                         "windows-real": "golden"}
+    s = seen["s"]
+    assert (s.ram, s.cpus, s.golden) == ("6G", "4", Path("/srv/win/golden"))
+    assert s.origin == {"ram": "windows.ram", "disks": "windows.disks", "cpus": "JARVIS_WINDOWS_CPUS"}
+    seen.clear()
+    seen["built"] = []
+    with pytest.raises(ConfigError, match="windows.ram.*'lots'"):
+        images.build_all(["windows-real"], options={"windows": {"ram": "lots"}})
+    assert "s" not in seen  # refused before anything is prepared
+
+
+def test_images_build_takes_options_only_for_the_image_that_uses_them():
+    proc = subprocess.run([sys.executable, "-m", "jarvis_pytest.cli", "images", "build", "--backend-option",
+                           "windows.ram=6G"], cwd=REPO, capture_output=True, text=True, timeout=120)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 2 and "Traceback" not in out and "--only windows-real" in out, out
 
 
 def test_preparing_downloads_nothing_unless_asked(monkeypatch, tmp_path):
@@ -419,6 +594,52 @@ def test_preparing_downloads_nothing_unless_asked(monkeypatch, tmp_path):
     monkeypatch.setattr(engine, "client", lambda **kw: pytest.fail("no Docker call without the opt-in"))
     with pytest.raises(InfrastructureError, match=f"{real.DOWNLOAD_ENV}=1"):
         real.prepare(s=real.settings({}, disks=str(tmp_path)))
+
+
+def test_the_kvm_backend_gives_its_results_the_golden_provenance(monkeypatch, tmp_path):
+    s = prepared(tmp_path)
+    kvm = backend_for("windows", "kvm", {"disks": str(s.disks)})
+    said = kvm.provenance()
+    assert said == real.provenance(s)
+    assert said["image"]["digest"] == "dockurr/windows@sha256:" + "2" * 64 and said["dockur_version"] == "6.05"
+    assert said["os"] == FACTS["os"] and said["snapshot"]["profile"] == "windows-10-dockur-6.05"
+    assert said["snapshot"]["state_sha256"] == real.ready_record(s)["snapshot"]["state_sha256"]
+
+
+PROVENANCE_PLUGIN = """
+import dataclasses
+
+from jarvis_pytest.devices.backend import register_backend
+from jarvis_pytest.devices.windows.backend import WINE
+
+# The Wine device under the kvm backend's name, saying what a kvm golden says of itself (`real.provenance`)
+register_backend(dataclasses.replace(WINE, name="kvm", stand_in=False, provenance=lambda: {
+    "image": {"ref": "dockurr/windows:6.05", "digest": "dockurr/windows@sha256:" + "2" * 64},
+    "dockur_version": "6.05", "snapshot": {"state_sha256": "ab" * 32}}))
+"""
+
+
+@pytest.mark.containers
+def test_every_result_of_a_kvm_task_records_its_golden(device_images, tmp_path):
+    """Through a real run: a backend's provenance (for kvm: the dockur image's digest and the memory snapshot)
+    reaches each task's result.json as `device_provenance`, beside the container's image id."""
+    (tmp_path / "kvm_standin.py").write_text(PROVENANCE_PLUGIN)
+    lib = tmp_path / "lib" / "windows"
+    lib.mkdir(parents=True)
+    (lib / "cmd_list_files.json").write_bytes((REPO / "tasks" / "windows" / "cmd_list_files.json").read_bytes())
+    run = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:xdist", "-p",
+                           "kvm_standin", str(REPO / "tasks" / "test_atomic.py"), "--library", str(lib.parent),
+                           "--instances", "1", "--agent", "noop", "--results-dir", str(run),
+                           "--windows-backend", "kvm"], cwd=REPO, capture_output=True, text=True, timeout=600,
+                          env={**os.environ, "PYTHONPATH": f"{tmp_path}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"})
+    out = proc.stdout + proc.stderr
+    (result,) = [json.loads(p.read_text()) for p in run.glob("tasks/*/result.json")]
+    assert result["backends"] == {"windows": "windows (kvm)"} and result["status"] == "failed", out[-3000:]
+    assert result["device_provenance"] == {"windows": {
+        "image": {"ref": "dockurr/windows:6.05", "digest": "dockurr/windows@sha256:" + "2" * 64},
+        "dockur_version": "6.05", "snapshot": {"state_sha256": "ab" * 32}}}
+    assert result["image_ids"]["windows"].startswith("sha256:")
 
 
 # -- what the device says about itself ----------------------------------------------------------------------------
@@ -490,6 +711,8 @@ def test_first_boot_scripts_install_python_and_the_server_and_start_them_at_logo
     text = install.decode()
     assert "python-embed.zip" in text and "server.zip" in text and r"C:\jarvis" in text
     assert r"CurrentVersion\Run" in text and "start.bat" in text and "python313._pth" in text
+    # a failed look-up of `transfer` while the golden was prepared is not remembered past its snapshot
+    assert r"WebClient\Parameters" in text and "ServerNotFoundCacheLifeTimeInSec /t REG_DWORD /d 0" in text
     rule = next(line for line in text.splitlines() if "firewall add rule" in line)
     assert r'program="%J%\python\python.exe"' in rule and "profile=any" in rule and "localport" not in rule
     run = start.decode()
@@ -505,6 +728,24 @@ NSLOOKUP_ANSWER = "Server:  UnKnown\nAddress:  172.30.0.1\n\nName:    transfer\n
 NSLOOKUP_NONE = "Server:  UnKnown\nAddress:  172.30.0.1\n\n*** UnKnown can't find transfer.: Non-existent domain\n"
 
 
+def start_bat_on_wine(wine, works: str, dns: str, args: str = ""):
+    """start.bat in the Wine device's `cmd` (as the VM runs it at logon, or as `start.bat map ADDRESS` after a
+    restore), with `net` and `nslookup` played by copies of the embeddable Python (each runs a file named by its
+    first argument: `use`, `transfer.`; `net use` succeeds only for the URL `works`) and the server's start shown
+    instead of done. Returns /run's answer and the second argument of each `net use`."""
+    setup = (r"mkdir C:\stubs 2>nul & del C:\stubs\net.log 2>nul & del C:\jarvis\start.log 2>nul & "
+             r"for %f in (python313.dll python313.zip python313._pth) do copy /y C:\jarvis\python\%f C:\stubs\ >nul")
+    assert wine.run(setup + r" & copy /y C:\jarvis\python\python.exe C:\stubs\net.exe >nul & "
+                    r"copy /y C:\jarvis\python\python.exe C:\stubs\nslookup.exe >nul").returncode == 0
+    wine.upload(r"C:\Users\user\use", NET_STUB.replace("{works}", works).encode())
+    wine.upload(r"C:\Users\user\transfer", "\n".join(f"print({line!r})" for line in
+                                                     dns.format(addr="10.9.8.7").splitlines()).encode())
+    script = (real.OEM_DIR / "start.bat").read_bytes().replace(b'start "jarvis" /min', b"echo START")
+    wine.upload(r"C:\stubs\start.bat", script)
+    out = wine.run(rf"set PATH=C:\stubs;%PATH%&& C:\stubs\start.bat {args}".rstrip(), timeout=120)
+    return out, wine.download(r"C:\stubs\net.log").decode().split()
+
+
 @pytest.mark.containers
 @pytest.mark.parametrize("works, dns, tries, mapped", [
     ("http://transfer:5244/", NSLOOKUP_ANSWER, ["http://transfer:5244/"], "S: is http://transfer:5244/"),
@@ -514,23 +755,36 @@ NSLOOKUP_NONE = "Server:  UnKnown\nAddress:  172.30.0.1\n\n*** UnKnown can't fin
     ("never", NSLOOKUP_NONE, ["http://transfer:5244/"] * 5, "S: could not be mapped"),
 ], ids=["by-name", "by-address", "neither", "no-dns-answer"])
 def test_logon_maps_s_by_name_then_by_address_with_retries_then_starts_the_server(wine, works, dns, tries, mapped):
-    """start.bat as the VM runs it at logon, in the Wine device's `cmd`, with `net` and `nslookup` played by copies
-    of the embeddable Python (each runs a file named by its first argument: `use`, `transfer.`) and the server's
-    start shown instead of done."""
-    setup = (r"mkdir C:\stubs 2>nul & del C:\stubs\net.log 2>nul & "
-             r"for %f in (python313.dll python313.zip python313._pth) do copy /y C:\jarvis\python\%f C:\stubs\ >nul")
-    assert wine.run(setup + r" & copy /y C:\jarvis\python\python.exe C:\stubs\net.exe >nul & "
-                    r"copy /y C:\jarvis\python\python.exe C:\stubs\nslookup.exe >nul").returncode == 0
-    wine.upload(r"C:\Users\user\use", NET_STUB.replace("{works}", works).encode())
-    wine.upload(r"C:\Users\user\transfer", "\n".join(f"print({line!r})" for line in
-                                                     dns.format(addr="10.9.8.7").splitlines()).encode())
-    script = (real.OEM_DIR / "start.bat").read_bytes().replace(b'start "jarvis" /min', b"echo START")
-    wine.upload(r"C:\stubs\start.bat", script)
-    out = wine.run(r"set PATH=C:\stubs;%PATH%&& C:\stubs\start.bat", timeout=120)
+    out, net = start_bat_on_wine(wine, works, dns)
     assert "START C:\\jarvis\\python\\python.exe -m jarvis_pytest.devices.windows.server" in out.stdout, out
-    assert wine.download(r"C:\stubs\net.log").decode().split() == tries
+    assert net == ["/delete", *tries]  # a stale S: goes first
     log = wine.download(r"C:\jarvis\start.log").decode()
     assert mapped in log and log.rstrip().endswith("starting the control server"), log
+
+
+@pytest.mark.containers
+@pytest.mark.parametrize("works, dns, tries, code", [
+    ("http://transfer:5244/", NSLOOKUP_NONE, ["http://transfer:5244/"], 0),
+    ("http://20.20.20.100:5244/", NSLOOKUP_NONE, ["http://transfer:5244/", "http://20.20.20.100:5244/"], 0),
+    ("http://20.20.20.100:5244/", NSLOOKUP_ANSWER,
+     ["http://transfer:5244/", "http://10.9.8.7:5244/", "http://20.20.20.100:5244/"], 0),
+    ("never", NSLOOKUP_NONE, ["http://transfer:5244/", "http://20.20.20.100:5244/"] * 5, 1),
+], ids=["by-name", "by-the-given-address", "after-dns", "neither"])
+def test_after_a_restore_s_is_mapped_with_the_drives_address_as_the_last_resort(wine, works, dns, tries, code):
+    """What the VM runner runs through the control server once a task's VM is restored (`vm_windows.MAP_DRIVE`):
+    S: mapped by name, by DNS's address, then by the drive's forwarded address, 5 rounds; the exit code says
+    whether it is mapped (the runner fails the boot otherwise, with start.bat's log); the server is not started
+    again."""
+    assert vm_windows.MAP_DRIVE == r"C:\jarvis\start.bat map 20.20.20.100"
+    out, net = start_bat_on_wine(wine, works, dns, "map 20.20.20.100")
+    assert out.returncode == code and "START" not in out.stdout, out
+    assert net == ["/delete", *tries]
+    if code == 0:
+        assert f"S: is {works}" in out.stdout, out
+    else:
+        assert "S: could not be mapped" in out.stderr and "round 5" in out.stderr, out
+    log = wine.download(r"C:\jarvis\start.log").decode()
+    assert "map S: after a restore" in log and "starting the control server" not in log, log
 
 
 def test_oem_bundle_carries_the_official_python_with_its_licence_and_the_server(tmp_path):
@@ -612,6 +866,7 @@ def test_live_quality_gate():
         "## jarvis-pytest: first run of the kvm Windows backend",
         f"image: {ready.get('image')}; dockur {ready.get('dockur_version')}; VERSION={ready.get('version')}",
         f"Windows: {ready.get('os')}; screen {ready.get('screen')}; prepared {ready.get('prepared')}",
+        f"memory snapshot: {ready.get('snapshot')}",
         f"sample: {', '.join(ids)}", f"results: {results} (jarvis qc exit {proc.returncode})", "",
         table.read_text() if table.exists() else "no qc.md: jarvis qc ran no task; its output is above"])
     print("\n" + report)

@@ -2,7 +2,7 @@
 
 Unit tests: the QEMU command lines, the machine profile's checks, the golden's rules (a restore refuses a golden
 whose profile, QEMU, files or state differ from what was saved; a state stream must be complete), the Windows
-profile read from dockur/windows v4.35, a task container's options.
+profile read from dockur/windows v6.05 (on qemus/qemu v7.48), a task container's options.
 
 The TCG proof (containers): a small Linux guest (Debian's kernel, `fixtures/images/vm-guest/`) is prepared once
 per machine through the same code a Windows golden would be, two tasks are restored from it in parallel by the
@@ -148,7 +148,8 @@ def test_a_golden_restores_only_with_its_profile_and_qemu(tmp_path):
         golden.check(g, dataclasses.replace(PROFILE, devices=tuple(reversed(PROFILE.devices))))
     assert err.value.field == "profile.devices"  # the same devices in another order are another machine
     # how the guest's clock is set and where its drive address leads are not the machine: they may change
-    golden.check(g, dataclasses.replace(PROFILE, clock_command="date -s @{epoch:.0f}", drive_target="drive:80"))
+    golden.check(g, dataclasses.replace(PROFILE, clock_command="date -s @{epoch:.0f}", drive_target="drive:80",
+                                        after_restore=("mount -a",)))
     with pytest.raises(ConfigError) as err:
         golden.check(g, PROFILE, "QEMU emulator version 8.2.2")
     assert err.value.field == "qemu" and "vm-runner" in str(err.value)
@@ -246,11 +247,13 @@ def test_the_runner_reports_bad_input_as_a_config_error_naming_the_host_path():
     assert isinstance(err, InfrastructureError) and "exited with code 3" in str(err)
 
 
-# -- the Windows profile (dockur/windows v4.35 on qemus/qemu v7.12) ---------------------------------------------
+# -- the Windows profile (dockur/windows v6.05 on qemus/qemu v7.48) ---------------------------------------------
 def dockur_storage(folder: Path, **changes: str | None) -> Path:
-    """What dockur v4.35 leaves in /storage after installing Windows 10 and a clean shutdown."""
+    """What dockur v6.05 leaves in /storage after installing Windows 10 and a clean shutdown (install.sh:403-404
+    windows.ver from the image's /etc/version, 416-417 windows.base; power.sh:401 windows.boot; qemus/qemu boot.sh:128,
+    173, 202 windows.rom and windows.vars; network.sh:2131 windows.mac, upper case)."""
     files = {"data.qcow2": "disk", "windows.rom": "code", "windows.vars": "vars", "windows.boot": "",
-             "windows.mac": "02:7A:EC:01:02:03\n", "windows.ver": "4.35\n", "windows.base": "win10x64.iso\n"}
+             "windows.mac": "02:7A:EC:01:02:03\n", "windows.ver": "6.05\n", "windows.base": "win10x64.iso\n"}
     files.update(changes)
     folder.mkdir()
     for name, content in files.items():
@@ -259,49 +262,78 @@ def dockur_storage(folder: Path, **changes: str | None) -> Path:
     return folder
 
 
-def test_the_windows_profile_is_dockurs_machine_made_migratable(tmp_path):
-    p = win.profile_from_storage(dockur_storage(tmp_path / "storage"), ram_mb=4096, cores=2)
+INTEL = "processor\t: 0\nvendor_id\t: GenuineIntel\nflags\t\t: fpu vme vmx tsc\n"
+AMD = "processor\t: 0\nvendor_id\t: AuthenticAMD\nflags\t\t: fpu vme svm tsc_scale\n"
+
+
+def test_the_windows_profile_is_dockur_6_05s_machine_made_migratable(tmp_path):
+    p = win.profile_from_storage(dockur_storage(tmp_path / "storage"), ram_mb=4096, cores=2, cpuinfo=INTEL)
     args = p.command(root="/golden", disk="/task/disk.qcow2", firmware_vars="/task/windows.vars", qmp="q",
                      console="c")
-    assert option(args, "-machine") == ["q35,smm=off,vmport=off,dump-guest-core=off,hpet=off"]
-    assert option(args, "-accel") == ["kvm"] and option(args, "-m") == ["4096M"]
-    assert option(args, "-smp") == ["2,sockets=1,dies=1,cores=2,threads=1"]
+    assert p.name == "windows-10-dockur-6.05"  # the release is recorded with the snapshot (READY's profile)
+    # qemus/qemu v7.48 config.sh:87-88: type=q35,smm=off (boot.sh:393),graphics=off,vmport=off,dump-guest-core=off,
+    # hpet=off; accel=kvm (proc.sh:70)
+    assert option(args, "-machine") == ["q35,smm=off,graphics=off,vmport=off,dump-guest-core=off,hpet=off"]
+    assert option(args, "-accel") == ["kvm"] and option(args, "-m") == ["4096M"]  # config.sh:40, RAM_SIZE 4G
+    assert option(args, "-smp") == ["2,sockets=1,dies=1,cores=2,threads=1"]  # config.sh:14
     cpu = option(args, "-cpu")[0].split(",")
-    assert cpu[0] == "host" and "migratable=on" in cpu and "-vmx" in cpu and "hv-time" in cpu
+    # proc.sh:67-81: host,kvm=on,l3-cache=on,+hypervisor (VM=Y, proc.sh:237),... -vmx (VMX=N for Windows, 246-259)
+    assert cpu[:6] == ["host", "kvm=on", "l3-cache=on", "+hypervisor", "migratable=on", "-vmx"]
+    assert "hv-time" in cpu and "arch_capabilities=off" not in cpu  # AMD hosts only (proc.sh:93-95)
     assert not {"migratable=no", "hv_passthrough", "hv-passthrough", "+invtsc"} & set(cpu)  # those block a save
-    assert option(args, "-rtc") == ["base=localtime"] and option(args, "-vga") == ["virtio"]
-    assert option(args, "-global") == ["ICH9-LPC.disable_s3=1", "ICH9-LPC.disable_s4=1",
-                                       "kvm-pit.lost_tick_policy=discard"]
+    amd = win.profile_from_storage(tmp_path / "storage", cpuinfo=AMD).cpu.split(",")
+    assert amd[:7] == cpu[:6] + ["arch_capabilities=off"] and "+invtsc" not in amd
+    assert option(args, "-rtc") == ["base=localtime"] and option(args, "-vga") == ["virtio"]  # boot.sh:114, display:7
+    assert option(args, "-global") == ["ICH9-LPC.disable_s3=1", "ICH9-LPC.disable_s4=1",  # boot.sh:116-119
+                                       "kvm-pit.lost_tick_policy=discard"]                # proc.sh:70
     assert option(args, "-drive")[:2] == ["file=/golden/windows.rom,if=pflash,unit=0,format=raw,readonly=on",
-                                          "file=/task/windows.vars,if=pflash,unit=1,format=raw"]
-    assert option(args, "-object") == ["iothread,id=io2", "rng-random,id=objrng0,filename=/dev/urandom"]
-    # dockur's devices in dockur's order (slots are given in order): USB, NIC, disk at 0xa, RNG
+                                          "file=/task/windows.vars,if=pflash,unit=1,format=raw"]  # boot.sh:227-228
+    # disk.sh:565: discard=unmap (DISK_DISCARD, disk.sh:14), detect-zeroes=on; cache and aio are the host's
+    assert option(args, "-drive")[2].endswith(",discard=unmap,detect-zeroes=on")
+    assert option(args, "-object") == ["iothread,id=io2",                              # disk.sh:707
+                                       "rng-random,id=objrng0,filename=/dev/urandom"]  # config.sh:108
+    # dockur's devices in dockur's order (slots are given in order): USB (config.sh:144-151), NIC (network.sh:2379),
+    # disk at 0xa with hotplug=off, SCSI disk at boot index 3 (disk.sh:595-596, 1179-1180), RNG (config.sh:109)
     assert option(args, "-device")[:6] == [
         "qemu-xhci,id=xhci,p2=7,p3=7", "usb-tablet",
         "virtio-net-pci,id=net0,netdev=net0,romfile=,mac=02:7A:EC:01:02:03",
-        "virtio-scsi-pci,id=disk0b,bus=pcie.0,addr=0xa,iothread=io2",
+        "virtio-scsi-pci,id=disk0b,bus=pcie.0,addr=0xa,iothread=io2,hotplug=off",
         "scsi-hd,drive=disk0,bus=disk0b.0,channel=0,scsi-id=0,lun=0,rotation_rate=1,bootindex=3",
         "virtio-rng-pci,rng=objrng0,id=rng0,bus=pcie.0"]
-    assert option(args, "-device")[6].startswith("vmgenid,")
+    assert option(args, "-device")[6].startswith("vmgenid,") and len(option(args, "-device")) == 7
+    assert option(args, "-fw_cfg") == ["name=opt/org.tianocore/UninstallMemAttrProtocol,string=y"]  # config.sh:236
     assert "net=20.20.20.0/24" in p.netdev() and "dhcpstart=20.20.20.21" in p.netdev()
     assert "guestfwd=tcp:20.20.20.100:5244-cmd:socat - TCP:transfer:5244" in p.netdev()
-    assert "Set-Date" in p.clock_command.format(epoch=1.5) and "[long](1.500*1000)" in p.clock_command.format(epoch=1.5)
+    clock = p.clock_command.format(epoch=1.5)
+    assert "Set-Date" in clock and "[long](1.500*1000)" in clock and "(Get-Process -Id $PID).StartTime" in clock
+    # after a restore S: is mapped (start.bat's `map`: the name, DNS's address, then the drive's forwarded address)
+    assert p.after_restore == ("C:\\jarvis\\start.bat map 20.20.20.100",)
     assert task_options(tmp_path / "storage", p)["devices"] == ["/dev/kvm:/dev/kvm:rwm"]
-    raw = win.profile_from_storage(dockur_storage(tmp_path / "raw", **{"data.qcow2": None, "data.img": "d"}))
+    raw = win.profile_from_storage(dockur_storage(tmp_path / "raw", **{"data.qcow2": None, "data.img": "d"}),
+                                   cpuinfo=INTEL)
     assert (raw.disk, raw.disk_format) == ("data.img", "raw")
 
 
-@pytest.mark.parametrize("changes, where", [
-    ({"windows.boot": None}, "windows.boot"),
-    ({"windows.mode": "windows_secure\n"}, "windows.mode"),
-    ({"windows.vars": None}, "windows.vars"),
-    ({"windows.mac": None}, "windows.mac"),
-    ({"data.qcow2": None}, "storage"),
+def test_which_cpu_dockur_calls_amd_is_read_from_the_first_vendor_id():
+    assert win.amd_host(AMD) and not win.amd_host(INTEL) and not win.amd_host("")
+    assert not win.amd_host(INTEL.replace("flags", "model name\t: Intel(R) Xeon(R) (AMD64)\nflags"))
+    assert win.cpu(True).split(",")[6] == "arch_capabilities=off" and "arch_capabilities=off" not in win.cpu(False)
+
+
+@pytest.mark.parametrize("changes, where, words", [
+    ({"windows.boot": None}, "windows.boot", "lacks"),
+    ({"windows.ver": None}, "windows.ver", "lacks"),
+    ({"windows.ver": "4.35\n"}, "windows.ver", "installed by dockur/windows '4.35'"),
+    ({"windows.ver": "6.06\n"}, "windows.ver", "installed by dockur/windows '6.06'"),
+    ({"windows.mode": "windows_secure\n"}, "windows.mode", "mode"),
+    ({"windows.vars": None}, "windows.vars", "UEFI"),
+    ({"windows.mac": None}, "windows.mac", "lacks"),
+    ({"data.qcow2": None}, "storage", "no disk"),
 ])
-def test_a_storage_that_is_not_an_installed_windows_10_is_one_error_naming_the_file(tmp_path, changes, where):
+def test_a_storage_that_is_not_dockur_6_05s_windows_10_is_one_error_naming_the_file(tmp_path, changes, where, words):
     with pytest.raises(ConfigError) as err:
-        win.profile_from_storage(dockur_storage(tmp_path / "storage", **changes))
-    assert err.value.path.endswith(where) and err.value.fix
+        win.profile_from_storage(dockur_storage(tmp_path / "storage", **changes), cpuinfo=INTEL)
+    assert err.value.path.endswith(where) and words in str(err.value) and err.value.fix
 
 
 # -- the TCG proof ----------------------------------------------------------------------------------------------
@@ -313,6 +345,9 @@ BEFORE_SNAPSHOT = (
     "cut -d' ' -f1,22 /proc/$(pgrep -o -f devices.vm.guest_server)/stat",  # the server process: pid, start time
 )
 MIN_SNAPSHOT_AGE = 5.0  # seconds between the save and a restore: an uncorrected clock would be this far behind
+# Run by the runner after the clock, before the VM is ready (as a Windows guest maps S:): the drive must answer then.
+AFTER_RESTORE = ("python3 -c \"import socket; socket.create_connection(('transfer', 5244), 10).close()\" && "
+                 "date +%s.%N > /run/after-restore",)
 
 
 def leftovers(docker, run_id: str) -> dict[str, list[str]]:
@@ -342,7 +377,10 @@ def test_tasks_restore_in_parallel_from_a_memory_snapshot_under_tcg(device_image
     prepare_wall = time.monotonic() - t0
     boot_id, server = record.outputs[2].strip(), record.outputs[3].strip()
     before = listing(folder)
-    register_backend(vm_backend(PLATFORM, folder, testguest.PROFILE))
+    import dataclasses
+
+    # after_restore is not part of the machine: a golden saved without it restores with it
+    register_backend(vm_backend(PLATFORM, folder, dataclasses.replace(testguest.PROFILE, after_restore=AFTER_RESTORE)))
     age = time.time() - record.created
     if age < MIN_SNAPSHOT_AGE:
         time.sleep(MIN_SNAPSHOT_AGE - age)
@@ -378,6 +416,9 @@ def test_tasks_restore_in_parallel_from_a_memory_snapshot_under_tcg(device_image
             assert abs(off) < 2.0, f"guest clock off by {off:.1f} s (snapshot {time.time() - record.created:.0f} s old)"
             # a new VM generation ID: the kernel reseeded its random number generator
             assert "crng reseeded due to virtual machine fork" in d.run("dmesg").stdout
+            # the profile's after_restore ran before the VM was ready, once the clock was set, with the drive there
+            ran = float(d.download("/run/after-restore"))
+            assert abs(ran - time.time()) < 60, f"after_restore ran at {ran}, now is {time.time()}"
         assert da.run("cat /proc/sys/kernel/random/uuid").stdout != db.run("cat /proc/sys/kernel/random/uuid").stdout
         # each task writes its own overlay: neither sees the other's change
         da.upload("/root/task.txt", b"A")
@@ -424,6 +465,7 @@ def test_tasks_restore_in_parallel_from_a_memory_snapshot_under_tcg(device_image
           f" s, memory save {record.timings['save']:.2f} s, state {record.state_bytes / 2**20:.0f} MiB; {record.qemu}")
     for name in ("A", "B", "C"):
         f = figures[name]
+        assert "after_restore" in f["phases"], f
         phases = ", ".join(f"{k} {v:.2f}" for k, v in f["phases"].items())
         print(f"[vm-runner] task {name}{' (parallel)' if name != 'C' else ' (next)'}: VM created→ready "
               f"{f['created_to_ready']:.2f} s (runner {f['seconds']:.2f} s: {phases}); environment with network "

@@ -17,7 +17,9 @@ extensions). A run resolves its backends once (`resolve_backends`): per platform
 options; the result (`Backends`, platform → Backend, and why a platform has none) goes to everything that boots,
 lists images or skips tasks. `backend_for(platform, name)` resolves one platform, outside a run. Every result
 records the backend that ran (`Backend.label`) and what its device really is (`Backend.describe`, read inside the
-device), and stand-ins (`stand_in=True`, e.g. Windows under Wine) are marked as such in the tables.
+device), what it is made from where the container's image does not say it (`Backend.provenance`, e.g. the
+dockur image and memory snapshot behind a Windows VM), and stand-ins (`stand_in=True`, e.g. Windows under Wine) are
+marked as such in the tables.
 """
 
 from __future__ import annotations
@@ -76,6 +78,25 @@ class BackendOption:
             raise ConfigError(f"{raw!r} is not valid{why}", field=where, fix=fix) from None
 
 
+def backend_option_pairs(items: list[tuple[str, str]]) -> dict[str, dict[str, str]]:
+    """`(flag, "PLATFORM.KEY=VALUE")` items as platform → key → text: a malformed one, or one key given two values,
+    is one ConfigError naming the flag (what the keys and values may be is `check_backend_options`'s)."""
+    out: dict[str, dict[str, str]] = {}
+    for flag, item in items:
+        name, sep, value = item.partition("=")
+        platform, dot, key = name.strip().partition(".")
+        if not sep or not dot or not platform or not key.strip():
+            raise ConfigError(f"{item!r} is not valid", field=flag,
+                              fix=f"write PLATFORM.KEY=VALUE, e.g. {OPTION_FLAG} windows.version=10")
+        given = out.setdefault(platform, {})
+        key = key.strip()
+        if given.get(key, value) != value:
+            raise ConfigError(f"{platform}.{key} is given twice ({given[key]!r} and {value!r})", field=flag,
+                              fix="give it once")
+        given[key] = value
+    return out
+
+
 def positive_int(text: str) -> int:
     """An option parser: a whole number, 1 or more."""
     value = int(text)
@@ -119,6 +140,9 @@ class Backend:
     options: tuple[BackendOption, ...] = ()      # the settings it takes (`--backend-option PLATFORM.KEY=VALUE`)
     values: Mapping[str, Any] = field(default_factory=dict)  # the value of each option it was made with
     derive: Callable[[Mapping[str, Any]], dict[str, Any]] | None = None  # option values → the fields they set
+    provenance: Callable[[], dict[str, Any]] | None = None  # what its devices are made from, beyond the container's
+                                                 # image, for every result (e.g. the image digest that installed a
+                                                 # VM's golden, and its memory snapshot)
 
     def __post_init__(self) -> None:
         """Every option has its value (the default where none was given), and the fields that follow from the

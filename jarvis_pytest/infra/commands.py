@@ -13,8 +13,19 @@ def _images_build(args) -> int:
         raise ConfigError(f"{args.base!r}: --base is gone (no other base was ever built or tested)", field="--base",
                           fix=f"drop it: every image builds on the offline {images.BASE_DESCRIPTION} base, and the "
                           "ubuntu platform's device is Debian 12 with XFCE")
+    from jarvis_pytest.devices.backend import OPTION_FLAG, backend_option_pairs, check_backend_options
+
+    given = backend_option_pairs([(OPTION_FLAG, item) for item in args.backend_option or []])
+    takers = {platform: name for name, (_, platform, _) in images.PREPARED.items() if platform}
+    for platform in given:  # each is for an image named with --only, and a key and value a run would take
+        if takers.get(platform) not in (args.only or []):
+            key = next(iter(given[platform]))
+            raise ConfigError(f"no image named with --only takes {platform} options", field=f"{OPTION_FLAG} "
+                              f"{platform}.{key}", fix="give them with the image that uses them: "
+                              + ", ".join(f"--only {n} for {p}.KEY=VALUE" for p, n in takers.items()))
+    check_backend_options({}, given)
     engine.ensure_engine()
-    built = images.build_all(args.only or None, force=args.force)
+    built = images.build_all(args.only or None, force=args.force, options=given)
     for name, tag in built.items():
         print(f"{name}\t{tag}")
     return 0
@@ -151,6 +162,9 @@ def register(sub) -> None:
     b.add_argument("--base", help=argparse.SUPPRESS)  # removed; refused with the reason
     b.add_argument("--only", action="append", metavar="NAME", help="build only this image (repeatable)")
     b.add_argument("--force", action="store_true", help="rebuild even when up to date")
+    b.add_argument("--backend-option", action="append", metavar="PLATFORM.KEY=VALUE",
+                   help="a setting of a prepared image, as a run takes it (repeatable; e.g. windows.ram=6G for "
+                        "--only windows-real); each else from its environment variable, else its default")
     b.set_defaults(func=_images_build)
     ls = isub.add_parser("list", help="list device images and whether they are built")
     ls.set_defaults(func=_images_list)

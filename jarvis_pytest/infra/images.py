@@ -215,14 +215,19 @@ def build_image(client, spec: ImageSpec, base_tag: str, force: bool = False) -> 
 
 
 # Images that are not built from a Dockerfile here but prepared once on a capable machine (KVM, internet); only
-# built when named with `--only`: name → "module:function" returning what it prepared.
-PREPARED = {"windows-real": "jarvis_pytest.devices.windows.real:prepare",
-            "android": "jarvis_pytest.devices.android.image:build"}
+# built when named with `--only`: name → ("module:function" returning what it prepared, the platform whose
+# `--backend-option`s it is given as `given=` (None: it takes none), the images built here that it needs first).
+PREPARED: dict[str, tuple[str, str | None, tuple[str, ...]]] = {
+    "windows-real": ("jarvis_pytest.devices.windows.real:prepare_configured", "windows", ("vm-runner",)),
+    "android": ("jarvis_pytest.devices.android.image:build", None, ()),
+}
 
 
-def build_all(names: list[str] | None = None, force: bool = False) -> dict[str, str]:
+def build_all(names: list[str] | None = None, force: bool = False,
+              options: dict[str, dict[str, str]] | None = None) -> dict[str, str]:
     """Build the base and the named images (all buildable ones when None); returns name → tag. Prepared images
-    (`PREPARED`) are made only when named."""
+    (`PREPARED`) are made only when named, after the images they need, with their platform's `options`
+    (platform → key → text, as `--backend-option PLATFORM.KEY=VALUE` gives them)."""
     import importlib
 
     from jarvis_pytest.infra.engine import client as docker_client
@@ -233,11 +238,17 @@ def build_all(names: list[str] | None = None, force: bool = False) -> dict[str, 
     if unknown:
         raise ConfigError(f"unknown image(s) {unknown}", field="--only",
                           fix=f"choose from {sorted(specs) + sorted(PREPARED)}")
-    prepared = {}
+    options = options or {}
+    prepared: dict[str, str] = {}
     for name in [n for n in names or [] if n in PREPARED]:
-        module, _, func = PREPARED[name].partition(":")
+        ref, platform, needs = PREPARED[name]
+        if needs:
+            base_tag = ensure_base(c, force=force)
+            prepared |= {n: build_image(c, specs[n], base_tag, force=force) for n in needs if n not in prepared}
+        module, _, func = ref.partition(":")
         _progress(f"{name}: preparing (see fixtures/images/{name}/README.md)")
-        prepared[name] = getattr(importlib.import_module(module), func)()
+        prepare = getattr(importlib.import_module(module), func)
+        prepared[name] = prepare(given=options.get(platform, {})) if platform else prepare()
     names = [n for n in names or [] if n not in PREPARED] if names else None
     if names == []:
         return prepared

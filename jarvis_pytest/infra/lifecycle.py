@@ -66,6 +66,8 @@ class TaskEnvironment:
     run_id: str = ""
     backends: dict[str, str] = field(default_factory=dict)  # platform → backend label, e.g. "windows (wine)"
     device_os: dict[str, str] = field(default_factory=dict)  # platform → what the device is, read inside it
+    provenance: dict[str, dict[str, Any]] = field(default_factory=dict)  # platform → what its device is made from
+                                                                         # (`Backend.provenance`), for the results
     stand_ins: tuple[str, ...] = ()       # platforms whose backend is a stand-in for the real platform
     egress: bool = False
     volumes: list[Any] = field(default_factory=list)
@@ -163,6 +165,15 @@ def describe_device(backend: Backend, device: Device, key: str) -> str:
     with _DESCRIBED_LOCK:
         _DESCRIBED[(backend.label, key)] = text
     return text
+
+
+def device_provenance(backend: Backend) -> dict[str, Any]:
+    """What `backend`'s devices are made from (`Backend.provenance`), for a task's result; never raises (a task does
+    not fail for it): {"unknown": why} when it cannot say."""
+    try:
+        return dict(backend.provenance()) if backend.provenance is not None else {}
+    except Exception as exc:
+        return {"unknown": f"{exc.__class__.__name__}: {str(exc)[:200]}"}
 
 
 class Lifecycle:
@@ -385,9 +396,11 @@ class Lifecycle:
         image_ids = {role: c.attrs["Image"] for role, c in containers.items()}
         device_os = {p: describe_device(b, devices[p], image_ids.get(p) or urls[p]) for p, b in backends.items()
                      if b.describe is not None}
+        provenance = {p: device_provenance(b) for p, b in backends.items() if b.provenance is not None}
         return TaskEnvironment(devices=devices, transfer=clients[TRANSFER_ROLE], image_ids=image_ids,
                                network=network, containers=containers, urls=urls, run_id=self.run_id,
                                backends={p: b.label for p, b in backends.items()}, device_os=device_os,
+                               provenance=provenance,
                                stand_ins=tuple(p for p, b in backends.items() if b.stand_in),
                                egress=self.egress, volumes=volumes, _booted=list(booted.values()),
                                engine=engines.name(self.docker_host), worker=self.worker, boot_started=boot_started,

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from jarvis_pytest.devices.backend import ALIASES, BUILTIN, check_backend_options
+from jarvis_pytest.devices.backend import ALIASES, BUILTIN, backend_option_pairs, check_backend_options
 from jarvis_pytest.errors import ConfigError
 from jarvis_pytest.infra import engines
 from jarvis_pytest.infra.containers import PIDS_LIMIT, pids_limit
@@ -230,19 +230,7 @@ def _backend_options(config: pytest.Config) -> dict[str, dict[str, str]]:
     pairs = [(BACKEND_OPTION, item) for item in config.getoption(BACKEND_OPTION) or []]
     pairs += [(flag, f"{key}={config.getoption(flag)}") for flag, key in BACKEND_OPTION_ALIASES.items()
               if config.getoption(flag) is not None]
-    out: dict[str, dict[str, str]] = {}
-    for flag, item in pairs:
-        name, sep, value = item.partition("=")
-        platform, dot, key = name.strip().partition(".")
-        if not sep or not dot or not platform or not key.strip():
-            raise _bad(flag, item, "write PLATFORM.KEY=VALUE, e.g. --backend-option windows.version=10")
-        given = out.setdefault(platform, {})
-        key = key.strip()
-        if given.get(key, value) != value:
-            raise ConfigError(f"{platform}.{key} is given twice ({given[key]!r} and {value!r})", field=flag,
-                              fix="give it once")
-        given[key] = value
-    return out
+    return backend_option_pairs(pairs)
 
 
 def new_run_id() -> str:

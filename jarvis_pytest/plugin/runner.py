@@ -101,6 +101,7 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
                 idle.remember(platform, env.image_ids[platform], device.observe().screenshot_png)
         result.backends = dict(getattr(env, "backends", {}))
         result.device_os = dict(getattr(env, "device_os", {}))
+        result.device_provenance = dict(getattr(env, "provenance", {}))
         result.stand_ins = sorted(getattr(env, "stand_ins", ()))
         result.engine = getattr(env, "engine", "")
         result.worker = getattr(env, "worker", "")

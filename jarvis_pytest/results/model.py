@@ -142,6 +142,10 @@ class TaskResult(BaseModel):
     # platform → what its device really is, read inside it: "Debian GNU/Linux 12 (bookworm), XFCE 4.18" for the
     # platform the paper calls ubuntu (`Backend.describe`)
     device_os: dict[str, str] = Field(default_factory=dict)
+    # platform → what its device is made from where the container's image (`image_ids`) does not say it
+    # (`Backend.provenance`): for a Windows VM the dockur image (its registry digest) that installed the golden,
+    # the Windows it reported, and the memory snapshot the task's VM was restored from
+    device_provenance: dict[str, dict[str, Any]] = Field(default_factory=dict)
     engine: str = ""  # the Docker engine the task's devices ran on: "local" or the --docker-host URL
     worker: str = ""  # the xdist worker that ran it ("gw0", …; "main" without xdist)
     edges: list[tuple[int, int]] = Field(default_factory=list)  # (upstream, downstream) subtask indices

@@ -12,7 +12,8 @@ Modules (host side unless said):
   runner       PID 1 of a runner container: `prepare` and `restore` (runner side)
   prepare      `prepare_snapshot(golden, profile, ...)`: a runner container in prepare mode
   backend      `vm_backend(platform, golden, profile)`: a device backend of restored VMs; `task_options(...)`
-  windows      dockur/windows' Windows 10 machine as a profile; `prepare_windows(storage, ...)`
+  windows      dockur/windows 6.05's Windows 10 machine as a profile; `prepare_windows(storage, ...)` (used by
+               `devices/windows/real.py`: the kvm backend's tasks are restored VMs)
   testguest    the small Linux guest that proves it all under TCG (`tests/test_vm_runner.py`)
   guest_server a minimal control server for a Linux guest (guest side)
 

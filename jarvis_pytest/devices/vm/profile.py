@@ -23,13 +23,15 @@ from jarvis_pytest.errors import ConfigError
 DRIVE_ID, NETDEV_ID = "disk0", "net0"
 RUNNER_PORT = 5001  # the runner's own forward to the guest's control server, on the container's loopback only
 # Fields that are not part of the machine: they may differ between save and restore.
-RUNTIME_FIELDS = ("clock_command", "drive_target")
+RUNTIME_FIELDS = ("clock_command", "drive_target", "after_restore")
 
 
 @dataclass(frozen=True)
 class Profile:
     """One VM's machine (see the module's docstring). `clock_command` sets the guest's wall clock after a restore,
-    through its control server's `/run` (`{epoch}`: seconds since 1970, UTC, a float)."""
+    through its control server's `/run` (`{epoch}`: seconds since 1970, UTC, a float); `after_restore` are more
+    commands run there after it, each of which must exit 0 before the VM counts as ready (e.g. a Windows guest
+    maps its drive letter, which the golden could not reach while it was prepared)."""
 
     name: str
     machine: str = "q35"                  # `-machine` value
@@ -61,6 +63,7 @@ class Profile:
     extra: tuple[str, ...] = ()           # more QEMU arguments, as given
     clock_command: str = "date -u -s @{epoch:.3f}"
     drive_target: str = "transfer:5244"   # where the runner connects the guest's drive address (the task network)
+    after_restore: tuple[str, ...] = ()   # guest commands run after the clock is set, before the VM is ready
 
     # -- reading and writing ------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:

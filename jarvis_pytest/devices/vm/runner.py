@@ -8,8 +8,9 @@ prepare  (golden mounted read-write at /golden): cold-boot an overlay of the bas
 restore  (golden mounted read-only at /golden): check the golden (`golden.check`, with this QEMU's version), make
          the task's overlay of the snapshot disk in /task (the container's own layer, gone with it), start QEMU
          with the same profile and `-incoming`, load the state, resume, set the guest's clock (a restored guest's
-         wall clock is the snapshot's) through its control server, and only then forward the control port to the
-         container's port (so "it answers" means "it is ready"). Runs until QEMU ends or the container is removed.
+         wall clock is the snapshot's) through its control server, run the profile's `after_restore` commands
+         there (each must exit 0), and only then forward the control port to the container's port (so "it
+         answers" means "it is ready"). Runs until QEMU ends or the container is removed.
 
 One JSON line per event on stdout (`{"vm": "ready", ...}`; the host reads them); the VM's serial console goes
 to /run/vm/console.log and its tail into the error event. Exit codes: 2 bad input (ConfigError), 3 the VM failed.
@@ -42,6 +43,7 @@ EXIT_CONFIG, EXIT_FAILED = 2, 3
 SAVE_TIMEOUT = 1800.0   # seconds the memory may take to reach its file (4 GiB of a Windows VM: well under a minute)
 LOAD_TIMEOUT = 600.0
 GUEST_TIMEOUT = 60.0    # seconds a restored guest's control server may take to answer (it was answering)
+AFTER_RESTORE_TIMEOUT = 90.0  # seconds each of the profile's `after_restore` commands may take in the guest
 
 
 class Failure(Exception):
@@ -270,11 +272,14 @@ def restore(profile: Profile, spec: dict[str, Any]) -> Vm:
     t_answered = time.monotonic()
     guest_run(vm, profile, profile.clock_command.format(epoch=time.time()), timeout=30)
     t_clock = time.monotonic()
+    for command in profile.after_restore:  # e.g. Windows maps its drive letter: the golden could not reach it
+        guest_run(vm, profile, command, timeout=AFTER_RESTORE_TIMEOUT)
+    t_after = time.monotonic()
     vm.relay = subprocess.Popen(relay_command(profile), stdin=subprocess.DEVNULL)
     emit("ready", started=started, epoch=time.time(), seconds=round(time.monotonic() - t0, 3),
          phases={"check_and_overlay": round(t_overlay - t0, 3), "qemu_start": round(t_qemu - t_overlay, 3),
                  "load": round(t_loaded - t_qemu, 3), "resume_to_answer": round(t_answered - t_loaded, 3),
-                 "clock": round(t_clock - t_answered, 3)})
+                 "clock": round(t_clock - t_answered, 3), "after_restore": round(t_after - t_clock, 3)})
     return vm
 
 

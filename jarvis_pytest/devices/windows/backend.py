@@ -2,6 +2,11 @@
 (a real Windows VM, `real.py`). Both run the same control server and are driven by the same client; results
 record which ran and what the device is (a Windows, or Wine on Debian), and Wine results are marked as a stand-in.
 
+A kvm task's device is a VM runner container (`devices/vm/`, image `vm-runner`) that restores the golden's memory
+snapshot into an overlay of the golden disk: dockur installed the golden once and does not run at task time. Its
+results also record the dockur image (registry digest) that installed the golden and the snapshot
+(`real.provenance`, as `device_provenance`).
+
 The kvm backend's options are the VM's settings (`real.WindowsVMSettings`): `--backend-option windows.version=10`,
 `windows.ram`, `windows.cpus`, `windows.image`, `windows.disks`, `windows.disk_size`, each else read from its
 older environment variable (`real.ENV`), else its default.
@@ -10,12 +15,15 @@ older environment variable (`real.ENV`), else its default.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from jarvis_pytest.devices.backend import Backend, BackendOption, os_release_name
 from jarvis_pytest.devices.desktop import DesktopDevice, wait_ready
+from jarvis_pytest.devices.vm.backend import QEMU_MEMORY_MB, vm_backend
+from jarvis_pytest.devices.vm.prepare import QEMU_OVERHEAD_MB, RUNNER_IMAGE
 from jarvis_pytest.devices.windows import real
-from jarvis_pytest.errors import InfrastructureError
+from jarvis_pytest.errors import ConfigError, InfrastructureError
 
 DRIVE_MOUNT = "/mnt/drive"  # where the Wine device mounts the task drive's storage; its prefix maps S: there
 PYTHON = r"C:\jarvis\python\python.exe"  # the device's own CPython (both backends)
@@ -54,7 +62,7 @@ def describe_vm(device: DesktopDevice) -> str:
 
 
 KVM_HELP = {
-    "image": ("the dockur/windows image the VM runs, pinned by a tag or a digest", "dockurr/windows:6.05"),
+    "image": ("the dockur/windows image that installs the golden: its 6.05 tag or a digest", "dockurr/windows:6.05"),
     "version": ("dockur's VERSION, a Windows 10: 10 (22H2) or 10l (Enterprise LTSC 2021)", "10"),
     "ram": ("the VM's memory, as dockur's RAM_SIZE takes it", "6G"),
     "cpus": ("the VM's cores (dockur's CPU_CORES)", "4"),
@@ -85,11 +93,34 @@ def _kvm_options() -> tuple[BackendOption, ...]:
 
 
 def _kvm(values: Mapping[str, Any]) -> dict[str, Any]:
-    """The fields of the kvm backend that follow from the VM's settings."""
+    """The fields of the kvm backend that follow from the VM's settings (the machine profile and the runner's
+    container options follow from the golden too: `KvmBackend.boot` reads them when a task boots)."""
     settings = real.settings({}, **values)
-    return {"image": settings.image, "container_options": real.task_container_options(None, settings),
-            "booted_memory_mb": real.ram_mb(settings) + 256,  # the VM's RAM, and QEMU
-            "unavailable": lambda: real.unavailable(settings)}
+    ram = real.ram_mb(settings)
+    return {"settings": settings, "memory": f"{ram + QEMU_OVERHEAD_MB}m",
+            "booted_memory_mb": ram + QEMU_MEMORY_MB,  # the VM's RAM, and QEMU
+            "unavailable": lambda: real.unavailable(settings), "provenance": lambda: real.provenance(settings)}
+
+
+@dataclass(frozen=True)
+class KvmBackend(Backend):
+    """The kvm backend: each device a VM restored by the runner from the golden's memory snapshot (`real.py`)."""
+
+    settings: real.WindowsVMSettings = field(default_factory=real.WindowsVMSettings)
+
+    def runner(self) -> Any:
+        """The VM runner backend that boots this golden's tasks (`vm.backend.vm_backend`): the golden read-only,
+        the saved state, dockur 6.05's machine with these settings' RAM and cores. A golden that cannot be restored
+        (`real.golden_problem`) is one ConfigError saying why, before any container exists."""
+        why = real.golden_problem(self.settings)
+        if why is not None:
+            raise ConfigError(why, fix=real.HOW_TO_RUN)
+        return vm_backend("windows", self.settings.golden, real.task_profile(self.settings), name=self.name,
+                          connect=self.connect, ready_timeout=self.ready_timeout, memory=self.memory,
+                          how_to_run=self.how_to_run)
+
+    def boot(self, request: Any) -> Any:
+        return self.runner().boot(request)
 
 
 WINE = Backend(
@@ -98,8 +129,8 @@ WINE = Backend(
     how_to_run="`jarvis images build --only windows` (offline, from Debian's Wine)", describe=describe_wine,
 )
 
-KVM = Backend(
-    platform="windows", name="kvm", image=real.IMAGE, image_kind="prepared", connect=_connect,
-    wait_ready=wait_ready, memory=None, ready_timeout=300.0, how_to_run=real.HOW_TO_RUN, describe=describe_vm,
-    options=_kvm_options(), derive=_kvm,
+KVM = KvmBackend(
+    platform="windows", name="kvm", image=RUNNER_IMAGE, connect=_connect, wait_ready=wait_ready,
+    ready_timeout=real.READY_TIMEOUT, how_to_run=real.HOW_TO_RUN, describe=describe_vm, options=_kvm_options(),
+    derive=_kvm,
 )

@@ -1,8 +1,16 @@
-"""The real Windows backend: a Windows VM in a dockur/windows container with `/dev/kvm`, booted from a
-copy-on-write overlay of a golden disk prepared once (`jarvis images build --only windows-real`; see
-`fixtures/images/windows-real/README.md`). Nothing here could run on the machine the project is built on; the
-container specification, the preparation's steps and the scripts are tested there, against containers that play
-dockur's entry where dockur itself cannot run.
+"""The real Windows backend: a Windows 10 VM installed once by dockur/windows (`/dev/kvm`), then each task's VM
+restored by the project's own VM runner (`jarvis_pytest/devices/vm/`: Debian's QEMU in `fixtures/images/vm-runner`)
+from a copy-on-write overlay of the golden disk and the golden's saved memory, so that Windows resumes logged on with
+the control server answering (`jarvis images build --only windows-real`; see `fixtures/images/windows-real/README.md`).
+Nothing here could run on the machine the project is built on; the container specifications, the preparation's
+steps and the scripts are tested there, against containers that play dockur's entry where dockur itself cannot run
+and, for the memory snapshot, a small Linux guest under TCG through the same runner.
+
+Preparation, in this order (READY means all of it holds): dockur installs Windows with the control server into the
+golden folder (its `/storage`); preparation checks the device, stops dockur with SIGTERM so that it shuts Windows
+down and writes `windows.boot`, and checks dockur's state (`finalise`); the runner then cold-boots that disk with
+dockur 6.05's machine (`devices/vm/windows.py`), adds `transfer` to the guest's hosts file, and saves its memory
+into `<golden>/snapshot/` (`save_snapshot`); only then is READY written. dockur does not run at task time.
 
 What this relies on, read in dockur/windows v6.05 (commit efe47da, image `dockurr/windows:6.05`, built on
 qemux/qemu 7.48; paths are of those repositories):
@@ -13,8 +21,9 @@ qemux/qemu 7.48; paths are of those repositories):
   hasBootMarker`). Otherwise it deletes `data.*`, `windows.*`, `*.rom` and `*.vars` and downloads an ISO. It also
   keeps `windows.ver` (the image's version), the firmware `windows.rom`/`windows.vars` (qemu src/boot.sh, per
   boot mode), `windows.mac` (qemu src/network.sh), machine state (`windows.hv`, `.vga`, `.net`, `.type`, ...,
-  src/legacy.sh) and, with a TPM, `windows.tpm`. A task's `/storage` therefore gets a copy of every golden file
-  but the disk, and an overlay of the disk.
+  src/legacy.sh) and, with a TPM, `windows.tpm`. The golden is that whole folder, as dockur left it: the runner
+  boots its disk, `windows.rom`, `windows.vars` and `windows.mac` (`devices/vm/windows.py`) and writes only
+  `snapshot/`.
 - `windows.boot` is written only when the container ends after Windows booted from its disk (src/power.sh
   `finish` → `markWindowsBooted`), on a signal it traps or when the guest powers off. It traps SIGTERM (and
   SIGHUP, SIGABRT, SIGQUIT) always, SIGINT only with a tty (since v6.02; v5.16-v6.01 never), then asks the guest
@@ -24,6 +33,8 @@ qemux/qemu 7.48; paths are of those repositories):
   1920x1080 and check the installed Windows shows it.
 - `VERSION=10` is Windows 10 22H2 (src/define.sh: `win10x64`), `10l` Windows 10 Enterprise LTSC 2021 (an
   evaluation): both ship WordPad and the classic Paint; `11` is today's Windows 11 ISO, without WordPad.
+- `RAM_SIZE` and `CPU_CORES` as qemus/qemu 7.48 reads them (src/memory.sh:20-49: a bare number below 130 is GiB,
+  else MiB; src/init.sh:85-97: no more cores than the host has): the runner restores with what dockur booted.
 """
 
 from __future__ import annotations
@@ -40,6 +51,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
+from jarvis_pytest.devices.vm import windows as vm_windows
 from jarvis_pytest.errors import ConfigError, InfrastructureError
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
@@ -47,9 +59,10 @@ OEM_DIR = REPO_ROOT / "fixtures" / "images" / "windows-real" / "oem"
 TASKS_DIR = REPO_ROOT / "tasks"
 
 # The dockur image, pinned by tag: v6.05 is the newest release (efe47da), the one whose sources these facts come
-# from; the behaviours above changed between tags (SIGINT, the answer file's screen, the state it keeps).
+# from; the behaviours above changed between tags (SIGINT, the answer file's screen, the state it keeps), and the VM
+# runner boots its machine (`vm_windows.DOCKUR_RELEASE`): another tag is refused.
 DOCKUR_REPO = "dockurr/windows"
-DOCKUR_TAG = "6.05"
+DOCKUR_TAG = vm_windows.DOCKUR_RELEASE
 DOCKUR_IMAGE = f"{DOCKUR_REPO}:{DOCKUR_TAG}"
 DOCKUR_TIMEOUT = 105        # seconds dockur waits for the guest's ACPI shutdown (src/power.sh TIMEOUT)
 STOP_GRACE = 150            # seconds preparation waits after SIGTERM before Docker kills (dockur's readme: 120)
@@ -71,33 +84,19 @@ FIRST_WINDOWS_11_BUILD = 22000  # Windows 11's registry still says "Windows 10" 
 USER, PASSWORD = "user", "jarvis"   # the desktop user: paths match the Wine backend's (C:\Users\user)
 CONTROL_PORT = 5000
 VIEWER_PORT = 8006                  # dockur's web view of the screen (watch an installation)
-# Inside the task's container: the golden read-only, the task's own copy of dockur's state in its storage folder.
-GOLDEN_MOUNT, STORAGE = "/golden", "/storage"
+STORAGE = "/storage"                # dockur's state folder in its container (the golden, while preparing)
 DISK = "data.qcow2"
 READY_NAME = "READY"
 BOOT_MARK = "windows.boot"
 DOWNLOAD_ENV = "JARVIS_WINDOWS_DOWNLOAD"  # preparing pulls an image and downloads Windows: only when asked
-READY_FORMAT = 2                    # READY is JSON since dockur's state is kept (an older READY: prepare again)
-
-# A task container's entry: dockur's state copied from the golden (every file but the disk, install media and our
-# READY), an overlay of the golden disk, then dockur's own entry (tini -s /run/entry.sh, its image's ENTRYPOINT).
-# A golden without windows.boot would make dockur reinstall: the container ends at once, saying so.
-TASK_ENTRY = f"""set -eu
-if [ ! -f {GOLDEN_MOUNT}/{BOOT_MARK} ] || [ ! -s {GOLDEN_MOUNT}/{DISK} ]; then
-  echo "jarvis: the golden disk has no {BOOT_MARK} or {DISK}: dockur would install Windows again; prepare it \
-again with: {DOWNLOAD_ENV}=1 jarvis images build --only windows-real" >&2
-  exit 3
-fi
-for f in {GOLDEN_MOUNT}/*; do
-  [ -f "$f" ] || continue
-  case "${{f##*/}}" in data.*|*.iso|*.ISO|{READY_NAME}|{READY_NAME}.*) continue ;; esac
-  cp -p "$f" {STORAGE}/
-done
-qemu-img create -q -f qcow2 -F qcow2 -b {GOLDEN_MOUNT}/{DISK} {STORAGE}/{DISK}
-exec /usr/bin/tini -s /run/entry.sh"""
+READY_FORMAT = 3                    # READY is written once the memory snapshot is saved (an older READY: prepare
+                                    # again: its tasks would boot dockur, not restore a snapshot)
+SETTLE = 30.0                       # seconds the runner's cold-booted Windows idles before its memory is saved
+READY_TIMEOUT = 120.0               # seconds from a task VM's creation until it answers: the state's load (the VM's
+                                    # RAM from disk), the clock, S: mapped (5 rounds at worst)
 
 HOW_TO_RUN = (f"on a machine with /dev/kvm and internet, `{DOWNLOAD_ENV}=1 jarvis images build --only windows-real` "
-              "once (installs Windows and the control server into a golden disk; see "
+              "once (installs Windows and the control server into a golden disk and saves its memory; see "
               "fixtures/images/windows-real/README.md), then `pytest --windows-backend kvm ...`")
 
 # setting → the environment variable it is read from today
@@ -151,6 +150,10 @@ class WindowsVMSettings:
         if "@sha256:" not in self.image and (":" not in tag or tag.endswith(":latest")):
             return bad("image", "not pinned: what an untagged or latest image does changes between its releases",
                        f"name a tag (default {DOCKUR_IMAGE}) or a digest")
+        if "@sha256:" not in self.image and tag.rsplit(":", 1)[1] != DOCKUR_TAG:
+            return bad("image", f"not dockur/windows {DOCKUR_TAG}: the VM runner restores tasks on the machine "
+                       f"{DOCKUR_TAG} gives Windows, and another release's differs",
+                       f"use {DOCKUR_IMAGE} (a mirror's {DOCKUR_TAG} tag, or its digest, will do)")
         if not re.fullmatch(r"\d+(\.\d+)?\s*[KMGT]?B?", self.ram.strip(), re.I):
             return bad("ram", "not an amount of memory", "give one as dockur's RAM_SIZE takes it, e.g. 4G or 6144M")
         if not self.cpus.strip().isdigit() or int(self.cpus) < 1:
@@ -186,12 +189,12 @@ def settings(environ: Mapping[str, str] | None = None, **options: Any) -> Window
 
 
 _DEFAULTS = settings()
-IMAGE = _DEFAULTS.image          # the image tasks run (the backend's `image`)
+IMAGE = _DEFAULTS.image          # the dockur image that installs the golden (tasks run the VM runner's)
 
 
 def unavailable(s: WindowsVMSettings | None = None) -> str | None:
-    """Why the real backend cannot run here (None: it can): no KVM, a bad setting, or no golden that a task
-    container would boot without installing Windows again."""
+    """Why the real backend cannot run here (None: it can): no KVM, a bad setting, or no golden whose memory
+    snapshot a task's VM may be restored from."""
     s = s or settings()
     if not os.path.exists("/dev/kvm"):
         return "no /dev/kvm on this machine (a Windows VM needs hardware virtualisation)"
@@ -202,7 +205,9 @@ def unavailable(s: WindowsVMSettings | None = None) -> str | None:
 
 
 def golden_problem(s: WindowsVMSettings) -> str | None:
-    """What keeps the golden in `s.golden` from booting a task as it is, or None."""
+    """What keeps the golden in `s.golden` from restoring a task's VM as it is, or None: an unfinished or earlier
+    preparation, dockur's state, another VERSION, image or dockur release, or a memory snapshot that these settings
+    (RAM, cores) or this host cannot restore (`vm.golden.check`)."""
     try:
         ready = json.loads(s.ready_mark.read_text())
     except FileNotFoundError:
@@ -210,40 +215,62 @@ def golden_problem(s: WindowsVMSettings) -> str | None:
     except (OSError, ValueError):
         ready = None
     if not isinstance(ready, dict) or ready.get("format") != READY_FORMAT:
-        return (f"{s.ready_mark} is from an earlier preparation that kept only the disk, without dockur's state: "
-                "every task would install Windows again; prepare it again")
+        return (f"{s.ready_mark} is from an earlier preparation without the memory snapshot tasks are restored from "
+                "(its tasks would boot Windows per task): prepare it again")
     missing = [name for name in (DISK, BOOT_MARK, "windows.base") if not (s.golden / name).is_file()]
     if missing:
         return f"the golden disk in {s.golden} lacks {', '.join(missing)}: prepare it again"
     if ready.get("windows_id") != s.windows_id:
         return (f"the golden holds dockur VERSION {ready.get('version')!r} ({ready.get('windows_id')}), the settings "
-                f"ask for {s.version!r} ({s.windows_id}), which dockur would install anew: set "
-                f"{s.origin.get('version', ENV['version'])} to {ready.get('version')!r} or prepare again")
+                f"ask for {s.version!r} ({s.windows_id}): set {s.origin.get('version', ENV['version'])} to "
+                f"{ready.get('version')!r} or prepare again")
     if ready.get("image", {}).get("ref") != s.image:
         return (f"the golden was prepared by {ready.get('image', {}).get('ref')}, the settings run {s.image}: set "
                 f"{s.origin.get('image', ENV['image'])} to it or prepare again")
+    from jarvis_pytest.devices.vm import golden as vm_golden
+
+    try:
+        vm_golden.check(s.golden, task_profile(s))
+    except ConfigError as exc:
+        return (f"the golden's memory snapshot cannot be restored with these settings (windows.ram {s.ram}, "
+                f"windows.cpus {s.cpus}) on this host: {exc}")
     return None
 
 
-def ram_size(s: WindowsVMSettings | None = None) -> str:
-    """The VM's RAM as dockur's `RAM_SIZE` takes it (`s.ram`; without settings `JARVIS_WINDOWS_RAM`, else 4G)."""
-    return (s or settings()).ram
+def ram_size(s: WindowsVMSettings) -> str:
+    """The VM's RAM as dockur's `RAM_SIZE` takes it (`s.ram`)."""
+    return s.ram
 
 
-def ram_mb(s: WindowsVMSettings | None = None) -> int:
-    """The VM's RAM in MB, read from `ram_size(s)` as dockur reads it (e.g. 4G, 6144M); 4096 for what it cannot
-    read (`WindowsVMSettings.check` names such a value)."""
-    value = ram_size(s).strip().upper().removesuffix("B")
-    scale = {"G": 1024, "M": 1, "T": 1024 * 1024}.get(value[-1:], None)
+def ram_mb(s: WindowsVMSettings) -> int:
+    """The VM's RAM in MiB, read from `s.ram` as qemus/qemu 7.48 reads RAM_SIZE (src/memory.sh:20-49: spaces
+    dropped, a bare number below 130 is GiB and any other bare number MiB, K/M/G/T with an optional B, IEC); 4096
+    for what it cannot read (`WindowsVMSettings.check` names such a value)."""
+    value = ram_size(s).replace(" ", "").upper()
+    if re.fullmatch(r"\d+(\.\d+)?", value):
+        value += "G" if int(value.split(".", 1)[0]) < 130 else "M"
+    value = value.removesuffix("B")
+    scale = {"K": 1 / 1024, "M": 1, "G": 1024, "T": 1024 * 1024}.get(value[-1:])
     try:
-        return int(float(value[:-1]) * scale) if scale else int(value) // (1024 * 1024)
+        return int(float(value[:-1]) * scale) if scale else 4096
     except ValueError:
         return 4096
 
 
+def cores(s: WindowsVMSettings) -> int:
+    """The VM's cores: `s.cpus`, no more than this host has (qemus/qemu 7.48 src/init.sh:85-97)."""
+    return max(1, min(int(s.cpus), os.cpu_count() or 1))
+
+
+def task_profile(s: WindowsVMSettings) -> "vm_windows.Profile":
+    """The machine a task's VM is restored on: dockur 6.05's for the Windows in `s.golden`, with the settings' RAM
+    and cores on this host's CPU (`vm_windows.profile_from_storage`; a ConfigError naming the file otherwise)."""
+    return vm_windows.profile_from_storage(s.golden, ram_mb=ram_mb(s), cores=cores(s))
+
+
 def environment(s: WindowsVMSettings | None = None) -> dict[str, str]:
-    """dockur's settings, the same when preparing and for tasks (a different VERSION would install anew): the
-    Windows version, the user, the screen the library assumes, the control port forwarded into the VM, resources."""
+    """dockur's settings when it installs the golden: the Windows version, the user, the screen the library assumes,
+    the control port forwarded into the VM, resources."""
     s = s or settings()
     width, height = s.screen
     return {"VERSION": s.version, "USERNAME": USER, "PASSWORD": PASSWORD, "WIDTH": str(width),
@@ -254,19 +281,6 @@ def environment(s: WindowsVMSettings | None = None) -> dict[str, str]:
 def _devices() -> list[str]:
     """KVM, and the TUN device dockur's NAT uses (passed when the host has it; dockur makes it otherwise)."""
     return ["/dev/kvm"] + (["/dev/net/tun"] if os.path.exists("/dev/net/tun") else [])
-
-
-def task_container_options(storage_volume: str | None = None,
-                           s: WindowsVMSettings | None = None) -> dict[str, Any]:
-    """docker-py options of a task's VM container: KVM, the network admin dockur needs for the VM's NIC, the
-    golden read-only, a fresh storage folder (a volume, or the image's anonymous one) that gets a copy of dockur's
-    state and an overlay of the golden disk before dockur starts (`TASK_ENTRY`)."""
-    s = s or settings()
-    volumes = {str(s.golden): {"bind": GOLDEN_MOUNT, "mode": "ro"}}
-    if storage_volume:
-        volumes[storage_volume] = {"bind": STORAGE, "mode": "rw"}
-    return {"devices": _devices(), "cap_add": ["NET_ADMIN"], "environment": environment(s),
-            "volumes": volumes, "entrypoint": ["/bin/sh", "-c", TASK_ENTRY], "stop_signal": "SIGTERM"}
 
 
 def preparation_options(s: WindowsVMSettings, oem: Path) -> dict[str, Any]:
@@ -446,16 +460,17 @@ def state_files(golden: Path) -> list[str]:
 
 
 def finalise(s: WindowsVMSettings, facts: dict[str, Any], log: str | None = None) -> dict[str, Any]:
-    """Write READY once the golden holds a finished dockur installation of `s.version`: the disk, windows.boot
-    (Windows was shut down cleanly), and windows.base naming the medium a task's VERSION will ask for. Raises
-    InfrastructureError naming what is missing (and the container's last lines) otherwise; READY stays absent."""
+    """What READY will say once the golden holds a finished dockur installation of `s.version`: the disk,
+    windows.boot (Windows was shut down cleanly), and windows.base naming the medium of that VERSION. Raises
+    InfrastructureError naming what is missing (and the container's last lines) otherwise. Writes nothing: READY
+    comes after the memory snapshot (`save_snapshot`, `mark_ready`)."""
     golden = s.golden
     problems = []
     if not (golden / DISK).is_file() or (golden / DISK).stat().st_size == 0:
         problems.append(f"no {DISK}")
     if not (golden / BOOT_MARK).is_file():
         problems.append(f"no {BOOT_MARK}: Windows was not shut down cleanly (dockur writes it when Windows has "
-                        "stopped after booting from its disk), so a task would install it again")
+                        "stopped after booting from its disk), so the disk is not a finished installation")
     base = (golden / "windows.base").read_text().strip() if (golden / "windows.base").is_file() else None
     if base != f"{s.windows_id}.iso":
         problems.append(f"windows.base is {base!r}, not {s.windows_id}.iso (VERSION={s.version}): dockur would "
@@ -465,13 +480,32 @@ def finalise(s: WindowsVMSettings, facts: dict[str, Any], log: str | None = None
                                   + ("" if log is None else
                                      f"\nlast lines of the preparing container:\n{log or '(it wrote none)'}"))
     ver = golden / "windows.ver"
-    ready = {"format": READY_FORMAT, "prepared": time.strftime("%Y-%m-%d %H:%M:%S"), "version": s.version,
-             "windows_id": s.windows_id, "dockur_version": ver.read_text().strip() if ver.is_file() else "",
-             "state": state_files(golden), **facts}
-    tmp = golden / f"{READY_NAME}.tmp"
-    tmp.write_text(json.dumps(ready, indent=2) + "\n")
+    return {"format": READY_FORMAT, "prepared": time.strftime("%Y-%m-%d %H:%M:%S"), "version": s.version,
+            "windows_id": s.windows_id, "dockur_version": ver.read_text().strip() if ver.is_file() else "",
+            "state": state_files(golden), **facts}
+
+
+def save_snapshot(s: WindowsVMSettings, ready: Mapping[str, Any], **options: Any) -> dict[str, Any]:
+    """The finished dockur golden cold-booted by the VM runner with dockur 6.05's machine, `transfer` added to its
+    hosts file, its memory saved into `<golden>/snapshot/` (`vm_windows.prepare_windows`; `options` go there).
+    Returns what READY records of it. Raises the runner's error (a ConfigError for a golden it refuses, e.g. one
+    installed by another dockur release)."""
+    source = {"image": ready.get("image", {}), "version": s.version, "windows_id": s.windows_id}
+    options.setdefault("settle", SETTLE)
+    record = vm_windows.prepare_windows(s.golden, ram_mb=ram_mb(s), cores=cores(s), source=source, **options)
+    return {"profile": record.profile.name, "qemu": record.qemu, "state_bytes": record.state_bytes,
+            "state_sha256": record.state_sha256, "saved": record.created, "timings": record.timings,
+            "memory_mb": record.profile.memory_mb, "cores": cores(s)}
+
+
+def mark_ready(s: WindowsVMSettings, ready: Mapping[str, Any]) -> dict[str, Any]:
+    """Write READY (atomically): the golden is a finished dockur installation with its memory snapshot saved."""
+    if "snapshot" not in ready:
+        raise InfrastructureError(f"the Windows golden in {s.golden} has no memory snapshot: READY is not written")
+    tmp = s.golden / f"{READY_NAME}.tmp"
+    tmp.write_text(json.dumps(dict(ready), indent=2) + "\n")
     tmp.replace(s.ready_mark)
-    return ready
+    return dict(ready)
 
 
 def ready_record(s: WindowsVMSettings | None = None) -> dict[str, Any] | None:
@@ -484,16 +518,20 @@ def ready_record(s: WindowsVMSettings | None = None) -> dict[str, Any] | None:
 
 
 def provenance(s: WindowsVMSettings | None = None) -> dict[str, Any]:
-    """What a result of the kvm backend records of its device: the dockur image (reference, id, digest) and the
-    Windows inside as the device said it at preparation (a task's device is that golden; `device_os` asks one)."""
+    """What every result of the kvm backend records of its device: the dockur image that installed it (reference,
+    id, registry digest) and its release, the Windows inside as the device said it at preparation, and the memory
+    snapshot a task's VM is restored from (a task's device is that golden; `device_os` asks one)."""
     ready = ready_record(s) or {}
+    snapshot = ready.get("snapshot", {})
     return {"image": ready.get("image", {}), "os": ready.get("os", {}), "version": ready.get("version", ""),
-            "dockur_version": ready.get("dockur_version", "")}
+            "dockur_version": ready.get("dockur_version", ""),
+            "snapshot": {k: snapshot[k] for k in ("profile", "qemu", "state_sha256", "saved") if k in snapshot}}
 
 
 def prepare(timeout: float = 3 * 3600, s: WindowsVMSettings | None = None) -> str:
     """Install Windows with the control server once, check it, shut it down cleanly and keep dockur's whole
-    storage folder as the golden (KVM and internet). Returns the golden disk's path."""
+    storage folder as the golden (KVM and internet), then save its memory with the VM runner; READY last. Returns
+    the golden disk's path."""
     s = s or settings()
     s.check()
     if not os.path.exists("/dev/kvm"):
@@ -503,9 +541,15 @@ def prepare(timeout: float = 3 * 3600, s: WindowsVMSettings | None = None) -> st
                                   f"its first boot; set {DOWNLOAD_ENV}=1 to allow that: {HOW_TO_RUN}")
     s.ready_mark.unlink(missing_ok=True)  # from here on the golden is unfinished until a new READY says otherwise
     from jarvis_pytest.devices.desktop import DesktopDevice, wait_ready
+    from jarvis_pytest.devices.vm.prepare import runner_image
     from jarvis_pytest.infra.engine import client
 
     docker = client(timeout=600)
+    try:  # the snapshot needs it after an hour of installing: say so now
+        docker.images.get(runner_image())
+    except Exception:
+        raise InfrastructureError(f"the VM runner image {runner_image()} is not built: run `jarvis images build "
+                                  "--only vm-runner` (offline) first") from None
     try:
         image = docker.images.get(s.image)
     except Exception:
@@ -539,5 +583,27 @@ def prepare(timeout: float = 3 * 3600, s: WindowsVMSettings | None = None) -> st
         ready = finalise(s, {"image": image_record(image, s.image), **facts}, log)
     finally:
         container.remove(force=True)
-    _log(f"golden ready: {s.golden} ({ready['image']['digest'] or ready['image']['id']})")
+    _log("dockur's golden is finished; the VM runner boots it and saves its memory (a few minutes)")
+    ready["snapshot"] = save_snapshot(s, ready)
+    mark_ready(s, ready)
+    _log(f"golden ready: {s.golden} ({ready['image']['digest'] or ready['image']['id']}; memory snapshot "
+         f"{ready['snapshot']['state_bytes'] / 2**30:.1f} GiB)")
     return str(s.golden / DISK)
+
+
+def configured_settings(given: Mapping[str, str] | None = None) -> WindowsVMSettings:
+    """The kvm backend's settings as a run would configure them: each `given` option (`--backend-option
+    windows.KEY=VALUE`, checked as the run checks it), else its environment variable, else the default."""
+    from jarvis_pytest.devices.backend import check_backend_options
+
+    given = dict(given or {})
+    check_backend_options({"windows": "kvm"}, {"windows": given} if given else {})
+    s = settings(os.environ, **given)
+    s.check()
+    return s
+
+
+def prepare_configured(given: Mapping[str, str] | None = None) -> str:
+    """`jarvis images build --only windows-real [--backend-option windows.KEY=VALUE ...]`: `prepare` with the
+    settings a run with those options would use."""
+    return prepare(s=configured_settings(given))
