@@ -15,6 +15,7 @@ COMMAND_MODULES = [
     "jarvis_pytest.infra.commands",
     "jarvis_pytest.dashboard.commands",
     "jarvis_pytest.agents.commands",
+    "jarvis_pytest.player.commands",
 ]
 
 

@@ -285,12 +285,18 @@ def brief(agent: Any, subtasks: Sequence[Any], devices: dict[str, Device],
     the built-in oracle: an instance of exactly `OracleAgent`, this module's class object (no name, attribute,
     subclass or copy of it qualifies). The built-in GUI oracle (exactly `gui_oracle.GuiOracleAgent`) is handed the
     subtasks' GUI solutions and a view of the devices' accessibility trees instead, never the devices (`backends`:
-    platform → the label of the backend that runs it, for its `gui_infeasible`). Call it after `agent.reset`.
-    Whether `agent` was briefed; any other agent is handed nothing."""
+    platform → the label of the backend that runs it, for its `gui_infeasible`). The browser player's agent
+    (exactly `player.agent.HumanAgent`) is handed a view of each device's screen, for its page to show it live:
+    screenshots only, nothing of the solution. Call it after `agent.reset`. Whether `agent` was briefed; any other
+    agent is handed nothing."""
     from jarvis_pytest.agents.gui_oracle import GuiOracleAgent, brief_gui
+    from jarvis_pytest.player.agent import HumanAgent, brief_human
 
     if type(agent) is GuiOracleAgent:
         brief_gui(agent, subtasks, devices, backends)
+        return True
+    if type(agent) is HumanAgent:
+        brief_human(agent, devices)
         return True
     if type(agent) is not OracleAgent:
         return False

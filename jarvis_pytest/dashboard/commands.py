@@ -35,6 +35,7 @@ def serve(args: argparse.Namespace) -> int:
         pass
     finally:
         server.server_close()
+        server.stop_plays()  # the runs its Play button started: their devices go too
     return 0
 
 

@@ -7,9 +7,15 @@ results directory, and the result files themselves under `/files/`.
     GET /api/runs/<run>/tasks/<task>               one task: result, verdicts, every step of the trajectory
     GET /api/compare?a=<run>&b=<run>               two runs task by task
     GET /files/<run>/<path>                        a file of the results directory (screenshots, summary.md)
+    POST /api/play  {"task": "<task id>"}          play the task yourself: starts `jarvis play` into a new run
+                                                   of the results directory, answers the player's address
 
 Request paths are decoded segment by segment and resolved under the results root; a segment that is `..`, `.`,
 empty, or hides a separator, and a path whose resolution (symlinks included) leaves the root, get 403.
+
+`/api/play` is the one request that does something: it is answered only on a loopback address (the dashboard
+bound to 127.0.0.1, asked for by that address: not a page of another site, which cannot send its
+`X-Jarvis-Play` header without a CORS preflight this server never grants, nor a DNS-rebinding one).
 """
 
 from __future__ import annotations
@@ -17,19 +23,24 @@ from __future__ import annotations
 import contextlib
 import json
 import mimetypes
-import sys
+import subprocess
 import threading
 from http import HTTPStatus
-from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from http.server import ThreadingHTTPServer
 from pathlib import Path
 from typing import Any, Iterator
 from urllib.parse import parse_qs, urlsplit
 
 from jarvis_pytest.dashboard.paths import PathRefused, resolve_under, split_segments
 from jarvis_pytest.dashboard.store import NotFound, ResultsStore
+from jarvis_pytest.http_server import JsonHandler
 
 STATIC_DIR = Path(__file__).parent / "static"
 STATIC_FILES = {"viewer.html": "text/html", "viewer.js": "text/javascript", "viewer.css": "text/css"}
+
+
+PLAY_HEADER = "X-Jarvis-Play"
+LOOPBACK = ("127.0.0.1", "::1")
 
 
 class DashboardServer(ThreadingHTTPServer):
@@ -39,7 +50,31 @@ class DashboardServer(ThreadingHTTPServer):
     def __init__(self, address: tuple[str, int], store: ResultsStore, verbose: bool = False):
         self.store = store
         self.verbose = verbose
+        self.plays: list[Any] = []  # the play runs this dashboard started (`jarvis_pytest.player.launch.Play`)
         super().__init__(address, DashboardHandler)
+
+    def start_play(self, task_id: str) -> dict[str, Any]:
+        """Start `jarvis play` of `task_id` into a new run of the results directory; its player's address."""
+        from jarvis_pytest.player.launch import start_play
+        from jarvis_pytest.plugin.options import new_run_id
+
+        run = f"{new_run_id()}-play"
+        play = start_play(task_id, self.store.root / run, log=self.store.root / ".play" / f"{run}.log")
+        self.plays.append(play)
+        threading.Thread(target=play.proc.wait, daemon=True, name=f"play-{run}").start()  # reaped when it ends
+        return {"url": play.wait_url(), "run": run, "task": task_id}
+
+    def stop_plays(self) -> None:
+        """End the play runs this dashboard started that still run (each waits for a person until its time limit):
+        SIGTERM, on which a run removes its devices and keeps what it wrote."""
+        for play in self.plays:
+            if play.proc.poll() is None:
+                play.proc.terminate()
+        for play in self.plays:
+            try:
+                play.proc.wait(timeout=60)
+            except subprocess.TimeoutExpired:
+                play.proc.kill()
 
     @property
     def url(self) -> str:
@@ -47,33 +82,15 @@ class DashboardServer(ThreadingHTTPServer):
         return f"http://{'localhost' if host in ('127.0.0.1', '::1') else host}:{port}/viewer.html"
 
 
-class DashboardHandler(BaseHTTPRequestHandler):
+class DashboardHandler(JsonHandler):
     server: DashboardServer
     server_version = "jarvis-dashboard"
-    protocol_version = "HTTP/1.1"
+    name = "dashboard"
 
     # -- plumbing -------------------------------------------------------------------------------------------
     def log_message(self, format: str, *args: Any) -> None:
         if self.server.verbose:
             super().log_message(format, *args)
-
-    def _send(self, status: int, body: bytes, content_type: str, headers: dict[str, str] | None = None) -> None:
-        self.send_response(status)
-        self.send_header("Content-Type", content_type)
-        self.send_header("Content-Length", str(len(body)))
-        self.send_header("X-Content-Type-Options", "nosniff")
-        for k, v in (headers or {}).items():
-            self.send_header(k, v)
-        self.end_headers()
-        if self.command != "HEAD":
-            self.wfile.write(body)
-
-    def _json(self, data: Any, status: int = 200) -> None:
-        body = json.dumps(data, ensure_ascii=False, default=str).encode()
-        self._send(status, body, "application/json; charset=utf-8", {"Cache-Control": "no-store"})
-
-    def _error(self, status: HTTPStatus, message: str) -> None:
-        self._json({"error": message, "status": int(status)}, int(status))
 
     def _file(self, path: Path, content_type: str | None = None) -> None:
         try:
@@ -97,6 +114,35 @@ class DashboardHandler(BaseHTTPRequestHandler):
     def do_HEAD(self) -> None:
         self.do_GET()
 
+    def do_POST(self) -> None:
+        from jarvis_pytest.errors import JarvisError
+        from jarvis_pytest.player.launch import PlayError
+
+        try:
+            if urlsplit(self.path).path != "/api/play":
+                return self._error(HTTPStatus.NOT_FOUND, "no such endpoint")
+            host, port = self.server.server_address[:2]
+            asked = (self.headers.get("Host") or "").strip().lower()
+            if host not in LOOPBACK or asked not in (f"127.0.0.1:{port}", f"localhost:{port}", f"[::1]:{port}") \
+                    or self.headers.get(PLAY_HEADER) != "1":
+                return self._error(HTTPStatus.FORBIDDEN, "playing a task is offered only to the dashboard's own page "
+                                   "on a loopback address (jarvis dashboard --host 127.0.0.1)")
+            try:
+                length = int(self.headers.get("Content-Length") or "0")
+                body = json.loads(self.rfile.read(length)) if 0 < length <= 4096 else None
+            except (ValueError, UnicodeDecodeError):
+                body = None
+            task = body.get("task") if isinstance(body, dict) else None
+            if not isinstance(task, str) or not task:
+                return self._error(HTTPStatus.BAD_REQUEST, 'the body must be {"task": "<task id>"}')
+            try:
+                return self._json(self.server.start_play(task))
+            except (PlayError, JarvisError) as exc:
+                tail = getattr(exc, "output", "")
+                return self._json({"error": str(exc), "output": tail[-2000:]}, int(HTTPStatus.BAD_REQUEST))
+        except (BrokenPipeError, ConnectionResetError):
+            pass
+
     def do_GET(self) -> None:
         try:
             self._route()
@@ -107,11 +153,7 @@ class DashboardHandler(BaseHTTPRequestHandler):
         except (BrokenPipeError, ConnectionResetError):
             pass
         except Exception as exc:  # a bug must not take the server down; say what happened
-            print(f"dashboard: {self.path}: {exc.__class__.__name__}: {exc}", file=sys.stderr)
-            try:
-                self._error(HTTPStatus.INTERNAL_SERVER_ERROR, f"{exc.__class__.__name__}: {exc}")
-            except OSError:
-                pass
+            self._failed(exc)
 
     def _route(self) -> None:
         url = urlsplit(self.path)
@@ -170,3 +212,4 @@ def serving(results: Path, host: str = "127.0.0.1", port: int = 0) -> Iterator[D
         server.shutdown()
         server.server_close()
         thread.join(timeout=5)
+        server.stop_plays()

@@ -128,7 +128,7 @@ def _summarize(results: list[TaskResult]) -> dict[str, Any]:
     except Exception as exc:  # the rollup failing on odd results must not take the dashboard down
         return {"available": False, "message": f"the rollup failed: {exc.__class__.__name__}: {exc}",
                 "headline": {}, "tables": [], "curve": []}
-    headline = {"tsr": _rate(_find(data, "tsr")), "ssr": _rate(_find(data, "ssr"))}
+    headline = {"tsr": _rate(_find(data, "tsr")), "ssr": _rate(_find(data, "ssr")), "timing": data.get("timing")}
     return {"available": True, "message": "", "headline": headline, "tables": _tables(data), "curve": _curve(data)}
 
 
@@ -149,6 +149,7 @@ def summary(results: list[TaskResult]) -> dict[str, Any]:
 
 
 def headline(results: list[TaskResult]) -> dict[str, Any]:
-    """{"tsr", "ssr", "tasks"}: the run's overall rates (None when unknown) over its finished tasks."""
+    """{"tsr", "ssr", "tasks", "timing"}: the run's overall rates (None when unknown) over its finished tasks, and
+    the time per task and per step (the rollup's `Timing`, or None)."""
     head = summary(results).get("headline") or {}
-    return {"tsr": head.get("tsr"), "ssr": head.get("ssr"), "tasks": len(results)}
+    return {"tsr": head.get("tsr"), "ssr": head.get("ssr"), "tasks": len(results), "timing": head.get("timing")}

@@ -131,6 +131,7 @@ class ResultsStore:
             "started": result.started if result else "",
             "finished": result.finished if result else "",
             "duration": (result.durations or {}).get("total") if result else None,
+            **_times(result),
             "latest_screenshots": latest_shots,
             "latest_step": _step_json(traj.last) if traj.last else None,
             "updated": _mtime_iso(tdir / "traj.jsonl") or _mtime_iso(tdir),
@@ -289,10 +290,21 @@ def _is_run(path: Path) -> bool:
     return path.is_dir() and any((path / n).exists() for n in ("run.json", "plan.json", "tasks"))
 
 
+def _times(result: TaskResult | None) -> dict[str, float | None]:
+    """A task's time (its loop's wall time), the agent's decision time (for `human`, the time the person took) and
+    that per step, in seconds; None where the task has none."""
+    d = (result.durations or {}) if result else {}
+    agent = d.get("agent")
+    steps = result.steps if result else 0
+    return {"loop_seconds": d.get("loop"), "agent_seconds": agent,
+            "step_seconds": agent / steps if agent is not None and steps else None}
+
+
 def _side(task: dict[str, Any] | None) -> dict[str, Any] | None:
     if task is None:
         return None
-    return {k: task[k] for k in ("name", "status", "subtasks_passed", "subtasks_total", "steps", "end_reason")}
+    return {k: task[k] for k in ("name", "status", "subtasks_passed", "subtasks_total", "steps", "end_reason",
+                                 "loop_seconds", "step_seconds")}
 
 
 def _change(a: dict[str, Any] | None, b: dict[str, Any] | None) -> str:

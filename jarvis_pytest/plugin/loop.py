@@ -11,6 +11,8 @@ Deadlines: each agent decision runs in a daemon thread with a deadline (`jarvis_
 clients honour, at most `step_timeout` and never past the task's deadline. A decision that does not come by
 the step deadline is an infrastructure error (the model endpoint hangs); one cut short by the task deadline
 ends the task as a `timeout`. Neither is an agent failure, and the session never waits for an abandoned thread.
+`--step-timeout` bounds model calls; an agent whose decisions wait for a person (`paced_by_person`: the browser
+player's `human`) is not held to it, and each of its decisions may take until the task's deadline.
 """
 
 from __future__ import annotations
@@ -52,6 +54,12 @@ class LoopOutcome:
     end_reason: str = ""  # done | fail | max_steps | timeout | agent_error
     agent_seconds: float = 0.0
     usage: dict[str, int] = field(default_factory=dict)
+
+
+def decision_seconds(agent: Agent, limits: LoopLimits) -> float:
+    """How long one decision of `agent` may take: the step time limit, which bounds model calls; for an agent that
+    waits for a person (`paced_by_person`), the task's time limit (a person thinking is not an endpoint hanging)."""
+    return limits.task_timeout if getattr(agent, "paced_by_person", False) is True else limits.step_timeout
 
 
 class StepDeadline(InfrastructureError):
@@ -218,7 +226,7 @@ def run_loop(agent: Agent, devices: dict[str, Device], idle: dict[str, Observati
             observations[platform] = obs
             shots[platform] = recorder.screenshot(index, platform, obs.screenshot_png)
         t1 = time.monotonic()
-        step_deadline = t1 + limits.step_timeout
+        step_deadline = t1 + decision_seconds(agent, limits)
         deadline = min(step_deadline, task_deadline)
         crash = None  # the verdict on an exception of the agent's code
         try:

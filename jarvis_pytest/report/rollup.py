@@ -42,6 +42,7 @@ DASH = "–"
 _LABEL = {**{p: spec(p).label for p in PLATFORM_NAMES}, "overall": "Overall",
           "atomic": "Atomic", "sw": "SW", "mi": "MI", "md": "MD"}
 _STATUS_RANK = {"passed": 3, "failed": 3, "timeout": 2, "error": 2, "running": 1}
+HUMAN = "human"  # the agent of runs a person made in the browser player (`jarvis play`)
 
 
 # ----------------------------------------------------------------------------------------------------- models
@@ -102,6 +103,20 @@ class ByDevices(BaseModel):
     ssr: float
 
 
+class Timing(BaseModel):
+    """How long the agent took on the counted tasks whose loop ran (`durations` has `loop`), in seconds. A task's
+    time is its loop's wall time (`loop`: from the first screen to the last action); its decision time is what the
+    agent took to decide (`agent`: model calls; for the agent `human`, a person in the player, how long each step
+    waited for their input). Per step: the decision time of all tasks over all their steps."""
+
+    tasks: int
+    steps: int
+    task_median: float | None = None
+    task_mean: float | None = None
+    decision_per_task: float | None = None  # mean
+    decision_per_step: float | None = None  # Σ decision time / Σ steps
+
+
 class Summary(BaseModel):
     """summary.json. Rates are fractions in [0, 1]; intervals are [lo, hi] or None when there is no task."""
 
@@ -123,6 +138,7 @@ class Summary(BaseModel):
     devices: dict[str, list[str]] = Field(default_factory=dict)  # platform → what its devices really were
     tasks: int = 0  # tasks counted in the rates
     rerun_after_device_fault: int = 0  # counted tasks whose devices faulted once and that ran again on fresh ones
+    timing: Timing | None = None  # time per task and per step (None: no counted task ran its loop)
     warnings: list[str] = Field(default_factory=list)  # inconsistent or unexpected results
     seed: int = 0
     n_boot: int = 2000
@@ -224,6 +240,21 @@ def _devices_line(s: Summary) -> str:
     return "; ".join(f"{p} platform: {' / '.join(v)}" for p, v in s.devices.items())
 
 
+def _timing(results: list[TaskResult]) -> Timing | None:
+    timed = [r for r in results if "loop" in r.durations]
+    if not timed:
+        return None
+    loops = sorted(r.durations["loop"] for r in timed)
+    decided = [r.durations.get("agent", 0.0) for r in timed]
+    steps = sum(r.steps for r in timed)
+    mid = len(loops) // 2
+    median = loops[mid] if len(loops) % 2 else (loops[mid - 1] + loops[mid]) / 2
+    return Timing(tasks=len(timed), steps=steps, task_median=round(median, 3),
+                  task_mean=round(math.fsum(loops) / len(loops), 3),
+                  decision_per_task=round(math.fsum(decided) / len(timed), 3),
+                  decision_per_step=round(math.fsum(decided) / steps, 3) if steps else None)
+
+
 def _dedupe(results: Sequence[TaskResult], warnings: list[str]) -> list[TaskResult]:
     """One result per task id, sorted by id. A duplicated id keeps the most finished result, whatever the order:
     status rank, then latest `finished`, then the larger JSON text."""
@@ -313,10 +344,14 @@ def rollup(results: Sequence[TaskResult], *, seed: int = 0, n_boot: int = 2000,
         devices=_devices(ordered),
         tasks=len(everything), warnings=sorted(warnings),
         rerun_after_device_fault=sum(1 for r in everything if r.device_faults),
-        seed=seed, n_boot=n_boot, level=LEVEL)
+        timing=_timing(everything), seed=seed, n_boot=n_boot, level=LEVEL)
 
 
 # ----------------------------------------------------------------------------------------------------- render
+
+
+def _secs(value: float | None) -> str:
+    return DASH if value is None else f"{value:.1f}"
 
 
 def _pct(rate: float | None) -> str:
@@ -436,6 +471,18 @@ def render_markdown(s: Summary) -> str:
                          [[m, *(str(s.failure_modes[c].get(m, 0)) for c in cats),
                            str(sum(s.failure_modes[c].get(m, 0) for c in cats))] for m in MODES
                           if any(s.failure_modes[c].get(m) for c in cats)])
+    if s.timing is not None:
+        t = s.timing
+        whose = ("a person's, in the player: how long each step waited for their input (each step's think time, "
+                 "from its screen shown to the input, is `extra.player.think_ms` in traj.jsonl)" if s.agent == HUMAN
+                 else "the agent's: its model calls and its own code")
+        out += ["## Table 6. Time per task and per step (s)", ""]
+        out += _md_table(["Model", "Tasks", "Steps", "Task time, median", "Task time, mean", "Decision time per task",
+                          "Decision time per step"],
+                         [[name, str(t.tasks), str(t.steps), _secs(t.task_median), _secs(t.task_mean),
+                           _secs(t.decision_per_task), _secs(t.decision_per_step)]])
+        out += [f"A task's time is its agent loop's wall time, from the first screen to the last action; the "
+                f"decision time is {whose} (per step: over all steps of the counted tasks).", ""]
     out += ["## Not counted", ""]
     out += _md_table(["", *(_LABEL[c] for c in CATEGORIES), "Total"],
                      [[label, *(str(d.get(c, 0)) for c in CATEGORIES), str(sum(d.values()))]
@@ -472,6 +519,10 @@ def render_terminal(s: Summary) -> str:
                  f"skipped (no device here): {sum(s.skipped.values())}; "
                  f"unfinished: {sum(s.unfinished.values())}; never ran: {sum(s.not_run.values())}"
                  "; SSR = mean of per-task ratios, (k/n) = subtasks")
+    if s.timing is not None:
+        who = "a person's time" if s.agent == HUMAN else "decision"
+        lines.append(f"time: a task {_secs(s.timing.task_median)} s (median of {s.timing.tasks}), {who} per step "
+                     f"{_secs(s.timing.decision_per_step)} s")
     lines += [f"warning: {w}" for w in s.warnings]
     return "\n".join(lines)
 

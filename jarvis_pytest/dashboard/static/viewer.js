@@ -46,6 +46,10 @@ const runHref = (run) => `#/run/${enc(run)}`;
 const taskHref = (run, task, step) => `#/run/${enc(run)}/task/${enc(task)}` + (step === undefined ? "" : `/${step}`);
 const fileUrl = (run, ...parts) => `/files/${[run, ...parts].map(enc).join("/")}`;
 const shotUrl = (run, task, name) => fileUrl(run, "tasks", task, name);
+const HUMAN = "human"; // the agent of runs a person made in the player (jarvis play)
+// A run's time per task and per step (the rollup's timing): "12.3 s a task · 1.2 s a step".
+const timeText = (t) => (t ? `${fmtSecs(t.task_median)} a task · ${fmtSecs(t.decision_per_step)} a step` : "–");
+const whoseTime = (agent) => (agent === HUMAN ? "a person's time" : "time");
 
 function setConn(ok, message) {
   conn.textContent = ok ? `updated ${new Date().toLocaleTimeString()}` : `connection problem: ${message} (retrying)`;
@@ -183,7 +187,7 @@ async function runsView() {
 function renderRuns(data) {
   if (!data.runs.length) return h("p", { class: "muted" }, `No runs in ${data.root} yet.`);
   return h("table", {},
-    h("thead", {}, h("tr", {}, ["Run", "Agent", "Started", "State", "Progress", "", "TSR", "SSR", "Problems"].map((c) => h("th", {}, c)))),
+    h("thead", {}, h("tr", {}, ["Run", "Agent", "Started", "State", "Progress", "", "TSR", "SSR", "Time", "Problems"].map((c) => h("th", {}, c)))),
     h("tbody", {}, data.runs.map((r) => {
       const c = r.counts || { done: 0, total: 0, running: 0, pending: 0 };
       return h("tr", { class: "row-link", "data-run": r.id },
@@ -195,6 +199,7 @@ function renderRuns(data) {
         h("td", { class: "muted" }, countsLine(c)),
         h("td", { class: "num" }, pct(r.stats && r.stats.tsr)),
         h("td", { class: "num" }, pct(r.stats && r.stats.ssr)),
+        h("td", { class: "num", "data-testid": "run-time", title: whoseTime(r.agent_name) }, timeText(r.stats && r.stats.timing)),
         h("td", { class: "num" }, (r.problems || []).length || ""));
     })));
 }
@@ -246,6 +251,7 @@ function renderRunHead(run) {
       run.finished ? h("span", {}, "finished ", h("b", {}, fmtTime(run.finished))) : null,
       h("span", {}, "last activity ", h("b", {}, fmtTime(run.updated))),
       h("span", {}, "TSR ", h("b", {}, pct(run.stats.tsr)), " · SSR ", h("b", {}, pct(run.stats.ssr))),
+      h("span", {}, `${whoseTime(run.agent_name)} `, h("b", { "data-testid": "run-time" }, timeText(run.stats.timing))),
       run.files.map((f) => h("a", { href: fileUrl(run.id, f), target: "_blank" }, f))),
     h("div", { class: "counts" },
       num("done", `${c.done}/${c.total}`, "done"), num("passed", c.passed, "passed"), num("failed", c.failed, "failed"),
@@ -290,7 +296,7 @@ function renderTasks(runId, tasks, filter) {
   const shown = tasks.filter((t) => !filter || [t.task_id, t.status, t.category, t.platforms.join(" "), t.end_reason, t.failure_mode || ""].join(" ").toLowerCase().includes(filter));
   if (!tasks.length) return h("p", { class: "muted" }, "No task has started yet.");
   return h("table", {},
-    h("thead", {}, h("tr", {}, ["Task", "Category", "Platforms", "Status", "Subtasks", "Steps", "End", "Duration", "Problems"].map((c) => h("th", {}, c)))),
+    h("thead", {}, h("tr", {}, ["Task", "Category", "Platforms", "Status", "Subtasks", "Steps", "End", "Duration", "Decision (a step)", "Problems"].map((c) => h("th", {}, c)))),
     h("tbody", {}, shown.map((t) => h("tr", { class: "row-link", "data-task": t.name, "data-status": t.status },
       h("td", {}, h("a", { href: taskHref(runId, t.name) }, t.task_id)),
       h("td", {}, t.category || "–"),
@@ -300,6 +306,8 @@ function renderTasks(runId, tasks, filter) {
       h("td", { class: "num" }, t.steps),
       h("td", {}, t.end_reason || "", t.failure_mode ? h("div", { class: "muted", "data-testid": "failure-mode" }, t.failure_mode) : null),
       h("td", { class: "num" }, fmtSecs(t.duration)),
+      h("td", { class: "num", "data-testid": "task-time" }, t.agent_seconds === null || t.agent_seconds === undefined ? "–"
+        : `${fmtSecs(t.agent_seconds)} (${fmtSecs(t.step_seconds)})`),
       h("td", { class: "num" }, t.problems.length ? h("span", { class: "badge error", title: t.problems.map((p) => p.message).join("\n") }, t.problems.length) : "")))));
 }
 
@@ -426,9 +434,38 @@ function renderTaskHead(runId, t) {
       Object.keys(t.backends || {}).length ? h("span", {}, "devices ", h("b", {}, Object.values(t.backends).join(", ")),
         (t.stand_ins || []).length ? h("span", { class: "muted" }, " (stand-in)") : null) : null,
       h("span", {}, "duration ", h("b", {}, fmtSecs(t.durations && t.durations.total))),
-      h("span", {}, "agent ", h("b", {}, (t.agent && t.agent.name) || "–"))),
+      h("span", {}, "agent ", h("b", {}, (t.agent && t.agent.name) || "–")),
+      t.agent_seconds !== null && t.agent_seconds !== undefined ? h("span", {}, `${whoseTime(t.agent && t.agent.name)} `,
+        h("b", { "data-testid": "task-time" }, `${fmtSecs(t.agent_seconds)} (${fmtSecs(t.step_seconds)} a step)`)) : null),
+    playBox(t.task_id),
     t.instruction ? h("div", { class: "card" }, h("b", {}, "Instruction"), h("pre", { "data-testid": "instruction" }, t.instruction)) : null,
   ];
+}
+
+// "Play this task yourself": starts `jarvis play` for it (POST /api/play) and opens the player in a new tab.
+function playBox(taskId) {
+  const note = h("span", { class: "muted", "data-testid": "play-note" });
+  const button = h("button", { "data-testid": "play", title: "boot this task's devices and play it in the browser as the agent human" }, "▶ Play this task yourself");
+  button.addEventListener("click", async () => {
+    const tab = window.open("about:blank", "_blank"); // opened now, while the click counts: a pop-up blocker allows it
+    button.disabled = true;
+    note.textContent = " starting its devices…";
+    try {
+      const res = await fetch("/api/play", { method: "POST", headers: { "Content-Type": "application/json", "X-Jarvis-Play": "1" },
+        body: JSON.stringify({ task: taskId }) });
+      const data = await res.json();
+      if (!res.ok) throw new Error(data.error || res.statusText);
+      note.replaceChildren(" playing in ", h("a", { href: data.url, target: "_blank", "data-testid": "play-link" }, "the player"),
+        " as run ", h("a", { href: runHref(data.run) }, data.run));
+      if (tab) tab.location.href = data.url;
+    } catch (e) {
+      if (tab) tab.close();
+      note.textContent = ` cannot play: ${e.message}`;
+    } finally {
+      button.disabled = false;
+    }
+  });
+  return h("div", { class: "toolbar" }, button, note);
 }
 
 function renderVerdicts(t) {
@@ -476,7 +513,9 @@ function renderFrame(runId, taskName, f, task) {
   if (f.kind !== "step") {
     return [h("h3", {}, f.label), shots];
   }
-  const timing = [["observe", f.observe_ms], ["agent", f.agent_ms], ["execute", f.exec_ms]]
+  const person = (f.extra || {}).player;
+  const timing = [["observe", f.observe_ms], [person ? "waited for the person" : "agent", f.agent_ms],
+    ...(person ? [["think", person.think_ms]] : []), ["execute", f.exec_ms]]
     .map(([k, v]) => `${k} ${Math.round(v)} ms`).join(" · ");
   return [
     h("h3", {}, `Step ${f.index} on ${f.platform || "?"}`),
@@ -508,7 +547,8 @@ async function compareView(a, b) {
   for (const r of data.rows) changes[r.change] = (changes[r.change] || 0) + 1;
   const side = (label, r) => h("div", { class: "card" }, h("b", {}, `${label}: `), h("a", { href: runHref(r.id) }, r.id), " ", badge(r.state),
     h("div", { class: "meta" }, h("span", {}, "agent ", h("b", {}, r.agent_name || "–")), h("span", {}, "started ", h("b", {}, fmtTime(r.started))),
-      h("span", {}, countsLine(r.counts)), h("span", {}, "TSR ", h("b", {}, pct(r.stats.tsr)), " · SSR ", h("b", {}, pct(r.stats.ssr)))));
+      h("span", {}, countsLine(r.counts)), h("span", {}, "TSR ", h("b", {}, pct(r.stats.tsr)), " · SSR ", h("b", {}, pct(r.stats.ssr))),
+      h("span", {}, `${whoseTime(r.agent_name)} `, h("b", { "data-testid": `compare-time-${label}` }, timeText(r.stats.timing)))));
   app.replaceChildren(h("h1", {}, "Compare runs"), side("A", data.a), side("B", data.b),
     h("div", { class: "toolbar" }, Object.entries(changes).map(([k, n]) => h("span", {}, badge(k), ` ${n}`)),
       h("label", {}, box, " only tasks whose status changed")),
@@ -522,10 +562,11 @@ async function compareView(a, b) {
 function renderCompare(data, onlyChanges) {
   const cell = (run, s) => (s ? [h("td", {}, h("a", { href: taskHref(run, s.name) }, badge(s.status))),
     h("td", { class: "num" }, s.subtasks_total ? `${s.subtasks_passed}/${s.subtasks_total}` : "–"),
-    h("td", { class: "num" }, s.steps)] : [h("td", { class: "muted" }, "–"), h("td", {}), h("td", {})]);
+    h("td", { class: "num" }, s.steps),
+    h("td", { class: "num" }, fmtSecs(s.loop_seconds))] : [h("td", { class: "muted" }, "–"), h("td", {}), h("td", {}), h("td", {})]);
   const rows = data.rows.filter((r) => !onlyChanges || r.change !== "same");
   return h("table", {},
-    h("thead", {}, h("tr", {}, ["Task", "A", "subtasks", "steps", "B", "subtasks", "steps", "Change"].map((c) => h("th", {}, c)))),
+    h("thead", {}, h("tr", {}, ["Task", "A", "subtasks", "steps", "time", "B", "subtasks", "steps", "time", "Change"].map((c) => h("th", {}, c)))),
     h("tbody", {}, rows.map((r) => h("tr", { "data-task": r.task_id, "data-change": r.change },
       h("td", {}, r.task_id), cell(data.a.id, r.a), cell(data.b.id, r.b), h("td", {}, badge(r.change))))));
 }
