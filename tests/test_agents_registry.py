@@ -175,3 +175,14 @@ def test_a_broken_adapter_is_one_config_error_at_load(monkeypatch, make, problem
     assert "probe_adapters:Make" in str(info.value) and info.value.field == "--agent"
     module.Make = _Adapter
     assert isinstance(load_agent("probe_adapters:Make", {}), _Adapter)
+
+
+def test_the_agent_options_help_names_every_built_in_agent():
+    """`pytest --help` lists the built-in agents by name: one added to BUILTIN_AGENTS is named there too."""
+    import inspect
+
+    from jarvis_pytest.agents.builtin import BUILTIN_AGENTS
+    from jarvis_pytest.plugin import options
+
+    source = inspect.getsource(options.addoption)
+    assert [name for name in BUILTIN_AGENTS if name not in source] == []

@@ -25,7 +25,8 @@ BACKEND_OPTION_ALIASES = {"--android-serial": "android.serial", "--android-image
 
 def addoption(parser: pytest.Parser) -> None:
     g = parser.getgroup("jarvis", "jarvis-pytest benchmark")
-    g.addoption("--agent", default=None, help="agent to evaluate: a built-in (oracle, noop, replay), a name from "
+    g.addoption("--agent", default=None, help="agent to evaluate: a built-in (oracle, gui-oracle: the GUI "
+                "solutions; human: a person in the browser player, see `jarvis play`; noop; replay), a name from "
                 "agents/, or module:Class")
     g.addoption("--agent-option", action="append", default=[], metavar="KEY=VALUE",
                 help="an option passed to the agent (repeatable)")
