@@ -156,9 +156,12 @@ def test_the_windows_vm_takes_its_settings_as_options(monkeypatch):
 
 # -- the command line -------------------------------------------------------------------------------------------
 def run_pytest(*args: str, env: dict | None = None, xdist: bool = False) -> subprocess.CompletedProcess:
+    """A pytest run of its own; it inherits no xdist worker's variables from the test that runs it (under
+    `make test`'s -n 2 the inner run's controller would otherwise see PYTEST_XDIST_WORKER and take itself for a
+    worker)."""
     cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", *([] if xdist else ["-p", "no:xdist"]), *args]
-    return subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=600,
-                          env={**os.environ, **(env or {})})
+    inherited = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST_XDIST_")}
+    return subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=600, env={**inherited, **(env or {})})
 
 
 BAD = {
