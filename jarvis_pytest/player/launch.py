@@ -4,6 +4,7 @@ listens (for `jarvis play` and the dashboard's Play button)."""
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import sys
@@ -115,8 +116,11 @@ def start_play(task_id: str, results_dir: Path, *, library: Path | None = None, 
         handle = open(log, "w", encoding="utf-8")
         out = handle
     try:
+        # a run of its own, one task, no xdist: nothing of an xdist worker that starts it (a test under `-n`) is
+        # passed on, else its player would take itself for that worker's and announce under the worker's name
+        env = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST_XDIST_")}
         proc = subprocess.Popen(cmd, cwd=REPO_ROOT, stdout=out, stderr=subprocess.STDOUT if out is not None else None,
-                                stdin=subprocess.DEVNULL)
+                                stdin=subprocess.DEVNULL, env=env)
     finally:
         if handle is not None:
             handle.close()
