@@ -325,7 +325,12 @@ def test_pyautogui_script(device, http, notepad):
     script = ("import pyautogui\npyautogui.write('xyz <{}>')\npyautogui.hotkey('ctrl', 'a')\n"
               "pyautogui.hotkey('ctrl', 'c')\nassert pyautogui.size() == (1920, 1080)\n")
     assert device.act(A.Pyautogui(script=script)).ok
-    wait_for(lambda: clipboard(http) == "xyz <{}>", 10, "the script's text copied")
+    seen = [None]
+    try:
+        wait_for(lambda: seen.append(clipboard(http)) or seen[-1] == "xyz <{}>", 10, "the script's text copied",
+                 str(http.base_url))
+    except AssertionError as exc:  # what the clipboard held, and the screen (make test failed here once)
+        raise AssertionError(f"{exc}; the clipboard held {seen[-1]!r}") from None
     bad = device.act(A.Pyautogui(script="pyautogui.nosuchcall()"))
     assert not bad.ok and "AttributeError" in bad.error and device.health().desktop
 
