@@ -17,6 +17,28 @@ TEST_LOCKS = Path(tempfile.gettempdir()) / "jarvis-runs-of-tests"
 os.environ["JARVIS_RUN_LOCKS"] = str(TEST_LOCKS)
 
 
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
+                 "--no-first-run", "--disable-sync"]
+
+
+@pytest.fixture(scope="session")
+def browser():
+    """Debian's Chromium driven by Playwright, one per test process.
+
+    Playwright's sync API runs its event loop in the calling thread, so a second `sync_playwright()` in the same
+    process fails while the first is open ("Sync API inside the asyncio loop"): every browser test shares this one.
+    """
+    from playwright.sync_api import sync_playwright
+
+    if not os.access(CHROMIUM, os.X_OK):
+        pytest.fail(f"{CHROMIUM} is missing: install Debian's chromium (apt-get install -y chromium)")
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield b
+        b.close()
+
+
 @pytest.fixture(scope="session")
 def device_images(tmp_path_factory) -> dict[str, str]:
     """The device images, built if missing (one builder at a time across xdist workers)."""

@@ -22,15 +22,12 @@ from pathlib import Path
 
 import httpx
 import pytest
-from playwright.sync_api import Page, expect, sync_playwright
+from playwright.sync_api import Page, expect
 
 from jarvis_pytest.dashboard import sample
 from jarvis_pytest.dashboard.server import serving
 from jarvis_pytest.results.model import SubtaskVerdict
 
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
-                 "--no-first-run", "--disable-sync"]
 POINT_ACTIONS = ("CLICK", "RIGHT_CLICK", "DOUBLE_CLICK", "MOVE_TO", "LONG_PRESS")
 REPO = Path(__file__).resolve().parents[1]
 REAL_TASKS = ["-k", "(mousepad-write_note or mousepad-replace_text) and seed0 or sw-0013", "--instances", "1"]
@@ -53,16 +50,6 @@ def bench(run_dir: Path, trajectory: Path, *args: str) -> subprocess.Popen:
     cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-q", str(REPO / "tasks"), "--results-dir",
            str(run_dir), "--agent", "replay", "--agent-option", f"file={trajectory}", *args]
     return subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-
-
-@pytest.fixture(scope="session")
-def browser():
-    if not os.access(CHROMIUM, os.X_OK):
-        pytest.fail(f"{CHROMIUM} is missing: install Debian's chromium (apt-get install -y chromium)")
-    with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        yield b
-        b.close()
 
 
 @pytest.fixture(scope="module")

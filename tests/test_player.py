@@ -451,8 +451,9 @@ def test_typed_values_become_placeholders_where_they_render_back():
     assert with_placeholders("{{raw}} final", VALUES) == "{{raw}} final"  # braces of its own: kept as typed
 
 
-def record(index, action, agent_ms=100.0, error=None) -> StepRecord:
-    return StepRecord(index=index, platform="ubuntu", action=action, agent_ms=agent_ms, error=error)
+def record(index, action, agent_ms=100.0, error=None, observe_ms=0.0) -> StepRecord:
+    return StepRecord(index=index, platform="ubuntu", action=action, agent_ms=agent_ms, error=error,
+                      observe_ms=observe_ms)
 
 
 def test_a_trajectory_becomes_plain_gui_steps_with_its_pace():
@@ -462,12 +463,16 @@ def test_a_trajectory_becomes_plain_gui_steps_with_its_pace():
         record(2, {"type": "TYPING", "text": "draft"}, agent_ms=100),
         record(3, {"type": "CLICK", "x": 5000, "y": 1}, error="point (5000, 1) is off the screen"),
         record(4, None, error="no input"),
-        record(5, {"type": "DONE"}, agent_ms=3000),
+        record(5, {"type": "CLICK", "x": 10, "y": 20}, agent_ms=1200, observe_ms=800),
+        record(6, {"type": "DONE"}, agent_ms=3000),
     ], VALUES)
-    assert steps == [{"type": "WAIT", "seconds": 4.0}, {"type": "HOTKEY", "keys": ["ctrl", "r"], "note": "recorded: step 0"},
-                     {"type": "WAIT", "seconds": 5.0},
+    assert steps == [{"type": "HOTKEY", "keys": ["ctrl", "r"], "note": "recorded: step 0"},  # the task starts ready
+                     {"type": "WAIT", "seconds": 5.0},  # the person's 9 s, at most max_wait
                      {"type": "CLICK", "x": 1005, "y": 481, "button": "left", "clicks": 1, "note": "recorded: step 1"},
-                     {"type": "TYPING", "text": "{{old_word}}", "note": "recorded: step 2"}]
+                     {"type": "WAIT", "seconds": 1.0},  # 0.1 s recorded: a second at least (SETTLE)
+                     {"type": "TYPING", "text": "{{old_word}}", "note": "recorded: step 2"},
+                     {"type": "WAIT", "seconds": 2.0},  # the observation's time counts: the device had it too
+                     {"type": "CLICK", "x": 10, "y": 20, "note": "recorded: step 5"}]
     assert any("step 3 (CLICK) left out: the device refused it" in n for n in notes)
 
 
@@ -491,10 +496,10 @@ def test_a_saved_solution_loads_as_the_template_s_and_what_the_schema_refuses_is
                                 {"type": "DONE"}])
     out = tmp_path / "lib" / "ubuntu" / "replace.json"
     target, steps, _ = save(run, REPO / "tasks", out=out)
-    assert target == out and steps[1]["text"] == "{{new_word}}"
+    assert target == out and steps[2]["text"] == "{{new_word}}"
     (tpl,) = load_library(tmp_path / "lib").templates
     seed1 = atomic_task(tpl, 1).formatted_subtasks[0]
-    assert seed1.gui_solution[1].action().text == seed1.input["new_word"].value  # each instance its own word
+    assert seed1.gui_solution[2].action().text == seed1.input["new_word"].value  # each instance its own word
     bad = played_run(tmp_path / "bad", [{"type": "PYAUTOGUI", "script": "import os"}])
     with pytest.raises(ConfigError, match=r"gui_solution\[0\].*cannot use PYAUTOGUI"):
         save(bad, REPO / "tasks", out=tmp_path / "never.json")

@@ -29,8 +29,7 @@ from pathlib import Path
 
 import docker
 import pytest
-from playwright.sync_api import Page, expect, sync_playwright
-from test_dashboard_browser import CHROMIUM, CHROMIUM_ARGS
+from playwright.sync_api import Page, expect
 
 from jarvis_pytest.agents.gui_oracle import A11yView, await_target, centre
 from jarvis_pytest.agents.protocol import HistoryEntry, TaskContext
@@ -147,14 +146,6 @@ class Played:
     seconds: float
     output: str
     values: dict
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        yield b
-        b.close()
 
 
 @pytest.fixture(scope="module")

@@ -9,8 +9,11 @@ template rather than of the one instance played:
 - **Placeholders**: where typed text holds a slot's value of the instance (or the name or stem of a path value),
   that part becomes the slot's placeholder (`{{new_word}}`, `{{renamed_file.name}}`), kept only where rendering it
   back gives exactly the text typed; so another instance types its own values.
-- **Pace**: before each action a `WAIT` of as long as the recording's agent took to decide it (a person waits for
-  a dialog to open; `max_wait` seconds at most, default 5, none under 0.3 s), since the GUI oracle acts at once.
+- **Pace**: before each action but the first a `WAIT` of as long as the device had between the previous action
+  and this one in the recording (its observation and the person's decision), and never under `SETTLE` seconds:
+  a person waits for a dialog to open, while the GUI oracle acts at once, and on a loaded machine the dialog a
+  person saw open in 0.3 s may take a second (`max_wait` seconds at most, default 5). Pixel steps replayed at a
+  pace stay weaker than steps that name their targets, which wait for exactly what they need.
 
 A step the schema refuses is refused here with the file, the step and the fix (a PYAUTOGUI script, say): the
 template with its new GUI solution is checked as the library checks templates, before anything is written.
@@ -33,7 +36,7 @@ from jarvis_pytest.tasks.model import TaskTemplate
 from jarvis_pytest.tasks.templating import path_part, render_text
 
 MAX_WAIT = 5.0  # seconds of one WAIT for the recorded pace, at most
-MIN_WAIT = 0.3  # a recorded pause shorter than this adds no WAIT
+SETTLE = 1.0  # seconds between two recorded actions, at least (a shortcut's dialog opening on a loaded machine)
 MIN_VALUE = 3  # characters a slot value needs to be taken for a placeholder (shorter ones occur by chance)
 ENDS = ("DONE", "FAIL")
 
@@ -89,9 +92,9 @@ def gui_steps(records: list[StepRecord], values: Mapping[str, Any], *,
         if rec.error:
             notes.append(f"step {rec.index} ({kind}) left out: the device refused it ({rec.error})")
             continue
-        pause = min(rec.agent_ms / 1000, max_wait)
-        if pause >= MIN_WAIT and kind != "WAIT":
-            steps.append({"type": "WAIT", "seconds": round(pause, 1)})
+        if kind != "WAIT" and steps:
+            gap = (rec.observe_ms + rec.agent_ms) / 1000
+            steps.append({"type": "WAIT", "seconds": round(max(SETTLE, min(gap, max_wait)), 1)})
         step = {k: v for k, v in action.items() if v is not None}
         if kind == "TYPING":
             text = with_placeholders(step["text"], values)
