@@ -143,6 +143,18 @@ def test_placeholders_are_rendered_in_gui_steps_of_atomic_instances(tmp_path):
     assert dumped["formatted_subtasks"][0]["gui_solution"][0]["target"]["control"] == {"class": "Edit"}
 
 
+def test_a_gui_step_that_types_a_number_slot_types_its_text(tmp_path):
+    """A `{{number}}` alone keeps the number's type elsewhere (an evaluator's argument); in a GUI step it is text to
+    type or to see (it used to become a number there and stop the run with an INTERNALERROR)."""
+    inputs = dict(TEMPLATE["inputs"], count={"type": "number", "range": [40, 999]})
+    steps = [{"type": "TYPING", "text": "{{count}}"}, {"type": "WAIT_FOR", "target": {"text": "{{count}}"}}]
+    lib = load_library(library_with(tmp_path, inputs=inputs, gui_solution=steps))
+    sub = atomic_task(lib.templates[0], 0).formatted_subtasks[0]
+    count = sub.input["count"].value
+    assert isinstance(count, int)
+    assert sub.gui_solution[0].action().text == str(count) and sub.gui_solution[1].target.text == str(count)
+
+
 def test_a_template_without_gui_fields_keeps_its_definition():
     """Adding the fields changed no atomic task's definition (what --resume compares) nor the library's digest."""
     lib = load_library(REPO / "tasks")

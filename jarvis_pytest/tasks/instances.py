@@ -63,8 +63,8 @@ def sample_inputs(template: TaskTemplate, rng: random.Random) -> dict[str, Scala
 def _render_steps(steps: list, model: type | TypeAdapter, values: Mapping[str, Scalar], where: Where) -> list:
     out = []
     for i, step in enumerate(steps):
-        data = render_data(step.model_dump(mode="json"), values,
-                           Where(where.path, where.task, f"{where.field}[{i}]"))
+        data = render_data(step.model_dump(mode="json"), values, Where(where.path, where.task, f"{where.field}[{i}]"),
+                           keep_types=model is not GuiStep)  # a GUI step's `{{number}}` is text to type
         data.pop("provides", None)
         out.append(model.validate_python(data) if isinstance(model, TypeAdapter) else model.model_validate(data))
     return out
