@@ -21,7 +21,7 @@ from jarvis_pytest.agents.gui_oracle import (A11yView, GuiOracleAgent, await_tar
                                              find_target, gui_plan, text_matches)
 from jarvis_pytest.agents.oracle import OracleAgent, brief
 from jarvis_pytest.agents.protocol import HistoryEntry, TaskContext
-from jarvis_pytest.errors import ConfigError
+from jarvis_pytest.errors import ConfigError, InfrastructureError
 from jarvis_pytest.tasks.instances import atomic_task
 from jarvis_pytest.tasks.library import load_library
 from jarvis_pytest.tasks.model import GuiTarget
@@ -273,6 +273,39 @@ def test_a_target_is_awaited_until_it_shows_and_no_longer():
     stays = await_target(FakeView(ATSPI), target(window="Find and Replace"), 1, gone=True, clock=clock,
                          sleep=clock.sleep)
     assert stays.node is not None and 1 <= clock.now < 1.5
+
+
+class FailingView:
+    """Fails its first `failures` reads as a device whose AT-SPI did not answer, then hands out `tree`."""
+
+    def __init__(self, failures, tree=None):
+        self.failures, self.tree_, self.calls = failures, tree, 0
+
+    def tree(self):
+        self.calls += 1
+        if self.calls <= self.failures:
+            raise InfrastructureError("ubuntu device: GET /a11y failed (500): atspi_error: Did not receive a reply")
+        return {"tree": self.tree_, "truncated": False}
+
+
+def test_a_failed_read_of_the_tree_is_read_again_within_the_timeout():
+    """Under load AT-SPI sometimes does not answer while a program starts: one such read no longer ends the task
+    as an error; a device that answers no read at all within the timeout still does."""
+    clock = FakeClock()
+    found = await_target(FailingView(2, ATSPI), target(window="Find and Replace"), 10, clock=clock, sleep=clock.sleep)
+    assert found.node is not None and found.reads == 1
+    clock = FakeClock()
+    once = await_target(FailingView(1, ATSPI), target(window="Find and Replace"), 0.1, clock=clock, sleep=clock.sleep)
+    assert once.node is not None  # a short timeout still gets a second read
+    clock = FakeClock()
+    with pytest.raises(InfrastructureError, match="Did not receive a reply"):
+        await_target(FailingView(10**6), target(window="Find and Replace"), 2, clock=clock, sleep=clock.sleep)
+    assert 2 <= clock.now < 2.5
+    clock = FakeClock()
+    empty = {"role": "desktop frame", "name": "", "children": []}
+    view = FailingView(0, empty)
+    missing = await_target(view, target(window="Find and Replace"), 1, clock=clock, sleep=clock.sleep)
+    assert missing.node is None and missing.reads == view.calls
 
 
 # -- the GUI oracle and who is told the GUI solution -----------------------------------------------------------

@@ -32,6 +32,7 @@ from jarvis_pytest.agents.protocol import AgentStep, HistoryEntry, TaskContext
 from jarvis_pytest.devices.actions import Done, Fail, Wait
 from jarvis_pytest.devices.base import Observation
 from jarvis_pytest.devices.control_http import title_matches
+from jarvis_pytest.errors import InfrastructureError
 
 POLL = 0.3  # seconds between two reads of the accessibility tree while a target is awaited
 TREE_NODES = 5000  # the most nodes of one read (LibreOffice shows many cells)
@@ -164,12 +165,24 @@ class Found:
 def await_target(view: A11yView, target: Any, timeout: float, *, gone: bool = False,
                  clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep) -> Found:
     """Read `view`'s tree until `target` shows (with `gone`: until it no longer shows), at most `timeout` seconds
-    (one read at least). `Found.node` is the node found; with `gone` it is None once the target went."""
+    (one read at least). `Found.node` is the node found; with `gone` it is None once the target went. A read the
+    device fails (AT-SPI "did not receive a reply" while a program starts, on a loaded machine) is read again within
+    the timeout, twice at least; the device's error is raised only when no read at all succeeded."""
     start = clock()
-    reads, truncated = 0, False
+    reads, truncated, failed = 0, False, 0
     node, title = None, None
     while True:
-        answer = view.tree()
+        try:
+            answer = view.tree()
+        except InfrastructureError:
+            failed += 1
+            if (clock() - start >= timeout and failed >= 2) and reads == 0:
+                raise
+            if clock() - start >= timeout and reads:
+                return Found(node if gone else None, title if gone else None, round(clock() - start, 3), reads,
+                             truncated)
+            sleep(POLL)
+            continue
         reads += 1
         truncated = truncated or bool(answer.get("truncated"))
         node, title = find_target(answer.get("tree") or {}, target)
