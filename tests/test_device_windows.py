@@ -258,6 +258,26 @@ def test_typing_is_exact_and_notepad_saves_it_through_its_save_as_dialog(device,
     assert data == b"\xef\xbb\xbf" + TEXT.encode("utf-8")
 
 
+def test_a_console_gets_every_character_typed(device, http):
+    """Wine finds no key for ( and ) on its Xvfb keyboard (VkKeyScanW answers -1); typed as Unicode they never
+    reached a console, so `echo 4(5)6` ran as `echo 456`. They are typed with the key the layout has for them."""
+    path = r"C:\temp\typed_in_console.txt"
+    device.run(f'if not exist C:\\temp mkdir C:\\temp & del /q "{path}"')
+    assert device.launch("cmd.exe")
+    console = window(http, "cmd.exe")
+    wait_for(lambda: next(w for w in windows(http) if w["id"] == console["id"])["focused"], what="the console focused")
+    try:
+        line = "echo 4(5)6 [*] {&} <>"
+        assert device.act(A.Typing(text=f"{line.replace('&', '^&').replace('<', '^<').replace('>', '^>')}"
+                                        f"> {path}\n")).ok
+        data = wait_for(lambda: (r := http.get("/files", params={"path": path})).status_code == 200 and r.content,
+                        what="the file the console wrote")
+        assert data.decode().strip() == line[5:], data
+    finally:
+        device.act(A.Typing(text="exit\n"))
+        wait_for(lambda: not any(w["id"] == console["id"] for w in windows(http)), what="the console gone")
+
+
 def test_a_click_opens_a_menu_and_a_right_click_the_context_menu(device, http, notepad):
     x, y = notepad["box"][:2]
     edit = edit_box(device)

@@ -830,7 +830,7 @@ def test_a_template_for_the_real_backend_is_skipped_here_with_its_reason(tmp_pat
     assert "needs the windows backend kvm" in out and "jarvis images build --only windows-real" in out
     summary = json.loads((run / "summary.json").read_text())
     assert summary["skipped"]["atomic"] == 1 and summary["atomic"]["overall"]["n"] == 0
-    assert "Skipped: no device here" in (run / "summary.md").read_text()
+    assert "Skipped: cannot run here" in (run / "summary.md").read_text()
 
 
 # -- the live gate: `make test-windows-real` ----------------------------------------------------------------------

@@ -21,7 +21,7 @@ from jarvis_pytest.agents.gui_oracle import (A11yView, GuiOracleAgent, await_tar
                                              find_target, gui_plan, text_matches)
 from jarvis_pytest.agents.oracle import OracleAgent, brief
 from jarvis_pytest.agents.protocol import HistoryEntry, TaskContext
-from jarvis_pytest.errors import ConfigError
+from jarvis_pytest.errors import ConfigError, InfrastructureError
 from jarvis_pytest.tasks.instances import atomic_task
 from jarvis_pytest.tasks.library import load_library
 from jarvis_pytest.tasks.model import GuiTarget
@@ -143,6 +143,18 @@ def test_placeholders_are_rendered_in_gui_steps_of_atomic_instances(tmp_path):
     assert dumped["formatted_subtasks"][0]["gui_solution"][0]["target"]["control"] == {"class": "Edit"}
 
 
+def test_a_gui_step_that_types_a_number_slot_types_its_text(tmp_path):
+    """A `{{number}}` alone keeps the number's type elsewhere (an evaluator's argument); in a GUI step it is text to
+    type or to see (it used to become a number there and stop the run with an INTERNALERROR)."""
+    inputs = dict(TEMPLATE["inputs"], count={"type": "number", "range": [40, 999]})
+    steps = [{"type": "TYPING", "text": "{{count}}"}, {"type": "WAIT_FOR", "target": {"text": "{{count}}"}}]
+    lib = load_library(library_with(tmp_path, inputs=inputs, gui_solution=steps))
+    sub = atomic_task(lib.templates[0], 0).formatted_subtasks[0]
+    count = sub.input["count"].value
+    assert isinstance(count, int)
+    assert sub.gui_solution[0].action().text == str(count) and sub.gui_solution[1].target.text == str(count)
+
+
 def test_a_template_without_gui_fields_keeps_its_definition():
     """Adding the fields changed no atomic task's definition (what --resume compares) nor the library's digest."""
     lib = load_library(REPO / "tasks")
@@ -261,6 +273,39 @@ def test_a_target_is_awaited_until_it_shows_and_no_longer():
     stays = await_target(FakeView(ATSPI), target(window="Find and Replace"), 1, gone=True, clock=clock,
                          sleep=clock.sleep)
     assert stays.node is not None and 1 <= clock.now < 1.5
+
+
+class FailingView:
+    """Fails its first `failures` reads as a device whose AT-SPI did not answer, then hands out `tree`."""
+
+    def __init__(self, failures, tree=None):
+        self.failures, self.tree_, self.calls = failures, tree, 0
+
+    def tree(self):
+        self.calls += 1
+        if self.calls <= self.failures:
+            raise InfrastructureError("ubuntu device: GET /a11y failed (500): atspi_error: Did not receive a reply")
+        return {"tree": self.tree_, "truncated": False}
+
+
+def test_a_failed_read_of_the_tree_is_read_again_within_the_timeout():
+    """Under load AT-SPI sometimes does not answer while a program starts: one such read no longer ends the task
+    as an error; a device that answers no read at all within the timeout still does."""
+    clock = FakeClock()
+    found = await_target(FailingView(2, ATSPI), target(window="Find and Replace"), 10, clock=clock, sleep=clock.sleep)
+    assert found.node is not None and found.reads == 1
+    clock = FakeClock()
+    once = await_target(FailingView(1, ATSPI), target(window="Find and Replace"), 0.1, clock=clock, sleep=clock.sleep)
+    assert once.node is not None  # a short timeout still gets a second read
+    clock = FakeClock()
+    with pytest.raises(InfrastructureError, match="Did not receive a reply"):
+        await_target(FailingView(10**6), target(window="Find and Replace"), 2, clock=clock, sleep=clock.sleep)
+    assert 2 <= clock.now < 2.5
+    clock = FakeClock()
+    empty = {"role": "desktop frame", "name": "", "children": []}
+    view = FailingView(0, empty)
+    missing = await_target(view, target(window="Find and Replace"), 1, clock=clock, sleep=clock.sleep)
+    assert missing.node is None and missing.reads == view.calls
 
 
 # -- the GUI oracle and who is told the GUI solution -----------------------------------------------------------

@@ -1,5 +1,6 @@
 """A benchmark run's exit status through pytest itself, on real Ubuntu containers: an agent's failed task is a
-result (exit 0, recorded as failed); an error beside it, or any failure of the oracle, exits 1. The run also shows
+result (exit 0, recorded as failed); an error beside it, or any failure of the oracle or of the GUI oracle,
+exits 1, and the GUI oracle skips a task it has no GUI solution for. The run also shows
 that traj.jsonl keeps only the first CUT_TEXT_CHARS of a huge model answer and records its length."""
 
 from __future__ import annotations
@@ -31,13 +32,15 @@ WRONG_SOLUTION = dict(MAKE_FILE, id="ubuntu-terminal-wrong_solution", solution=[
 # set-up fails on the device: an infrastructure error, never the agent's
 BROKEN_SETUP = dict(MAKE_FILE, id="ubuntu-terminal-broken_setup",
                     config=[{"type": "command", "command": "exit 7"}])
+# a GUI solution that does nothing: the cheapest real failure of the GUI oracle
+IDLE_GUI = dict(MAKE_FILE, id="ubuntu-terminal-idle_gui", gui_solution=[{"type": "WAIT", "seconds": 0.1}])
 
 
 @pytest.fixture(scope="module")
 def library(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("library")
     (root / "ubuntu").mkdir()
-    for t in (MAKE_FILE, WRONG_SOLUTION, BROKEN_SETUP):
+    for t in (MAKE_FILE, WRONG_SOLUTION, BROKEN_SETUP, IDLE_GUI):
         (root / "ubuntu" / f"{t['id'].rsplit('-', 1)[1]}.json").write_text(json.dumps(t))
     (root / "none.json").write_text('{"tasks": []}')
     return root
@@ -79,3 +82,14 @@ def test_any_failure_of_the_oracle_exits_1(device_images, library, tmp_path):
     assert proc.returncode == 1, proc.stdout[-3000:]
     results = {r.task_id: r.status for r in load_results(tmp_path)[0]}
     assert results == {"ubuntu-terminal-make_file[seed0]": "passed", "ubuntu-terminal-wrong_solution[seed0]": "failed"}
+
+
+def test_the_gui_oracle_skips_what_it_cannot_prove_and_its_failure_exits_1(device_images, library, tmp_path):
+    proc = bench(library, tmp_path, "make_file or idle_gui", "--agent", "gui-oracle", "-rs")
+    assert proc.returncode == 1, proc.stdout[-3000:]
+    results = {r.task_id: r for r in load_results(tmp_path)[0]}
+    assert {k: r.status for k, r in results.items()} == {"ubuntu-terminal-make_file[seed0]": "skipped",
+                                                         "ubuntu-terminal-idle_gui[seed0]": "failed"}
+    why = results["ubuntu-terminal-make_file[seed0]"].error
+    assert "the GUI oracle has nothing to run" in why and "has no GUI solution yet" in why, why
+    assert "has no GUI solution yet" in proc.stdout and "not a failed run" not in proc.stdout

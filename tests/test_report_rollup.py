@@ -191,7 +191,7 @@ def test_terminal_is_fixed_width():
     lines = render_terminal(rollup(MIXED)).splitlines()
     assert "60.0 (3/5)" in lines[1] and "62.5 (11/17)" in lines[4]
     assert len({len(line) for line in lines[:5]}) == 1  # right-aligned columns line up
-    assert "errors (not in rates): atomic 1, md 1; timeouts: 0; skipped (no device here): 0; unfinished: 2" in lines[-1]
+    assert "errors (not in rates): atomic 1, md 1; timeouts: 0; skipped (cannot run here): 0; unfinished: 2" in lines[-1]
 
 
 def write_run(run_dir, results):

@@ -13,8 +13,12 @@ refused.
 
 It is told the GUI solution and given a view of the devices' accessibility trees through `oracle.brief` (the one
 private path, recognising it by its class object as it does the oracle): it holds no device, so it can run no
-command and write no file. Composed tasks have no GUI solutions yet: it gives up on a subtask without one, saying
-so, and on one whose template says the GUI cannot solve it on the device's backend (`gui_infeasible`).
+command and write no file. A composed task's plan is its subtasks' GUI solutions in order (the built-in transfer
+has its own, `tasks/transfer.py`); what an upstream made and set-up held back (`opens`) is opened first from a
+command line opened through the GUI (`opening_steps`). It gives up on a subtask without a GUI solution, saying so,
+and on one whose template says the GUI cannot solve it on the device's backend (`gui_infeasible`). It never brings
+a subtask's window to the front: where two subtasks of one device need different windows, the later one's GUI
+solution must do it (a gap: XFCE's taskbar button would minimise a window that is already in front).
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from jarvis_pytest.agents.protocol import AgentStep, HistoryEntry, TaskContext
 from jarvis_pytest.devices.actions import Done, Fail, Wait
 from jarvis_pytest.devices.base import Observation
 from jarvis_pytest.devices.control_http import title_matches
+from jarvis_pytest.errors import InfrastructureError
 
 POLL = 0.3  # seconds between two reads of the accessibility tree while a target is awaited
 TREE_NODES = 5000  # the most nodes of one read (LibreOffice shows many cells)
@@ -160,12 +165,24 @@ class Found:
 def await_target(view: A11yView, target: Any, timeout: float, *, gone: bool = False,
                  clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep) -> Found:
     """Read `view`'s tree until `target` shows (with `gone`: until it no longer shows), at most `timeout` seconds
-    (one read at least). `Found.node` is the node found; with `gone` it is None once the target went."""
+    (one read at least). `Found.node` is the node found; with `gone` it is None once the target went. A read the
+    device fails (AT-SPI "did not receive a reply" while a program starts, on a loaded machine) is read again within
+    the timeout, twice at least; the device's error is raised only when no read at all succeeded."""
     start = clock()
-    reads, truncated = 0, False
+    reads, truncated, failed = 0, False, 0
     node, title = None, None
     while True:
-        answer = view.tree()
+        try:
+            answer = view.tree()
+        except InfrastructureError:
+            failed += 1
+            if (clock() - start >= timeout and failed >= 2) and reads == 0:
+                raise
+            if clock() - start >= timeout and reads:
+                return Found(node if gone else None, title if gone else None, round(clock() - start, 3), reads,
+                             truncated)
+            sleep(POLL)
+            continue
         reads += 1
         truncated = truncated or bool(answer.get("truncated"))
         node, title = find_target(answer.get("tree") or {}, target)
@@ -184,12 +201,36 @@ def centre(box: Sequence[int]) -> tuple[int, int]:
 
 @dataclass(frozen=True)
 class GuiItem:
-    """One step of a GUI plan: subtask `subtask`'s GUI step `index` (`step`, a GuiStep) on `platform`."""
+    """One step of a GUI plan: subtask `subtask`'s GUI step `index` (`step`, a GuiStep) on `platform`; `origin`
+    says where the step comes from: the subtask's `gui_solution`, or `opens` (opening what an upstream made)."""
 
     subtask: int
     platform: str
     index: int
     step: Any
+    origin: str = "gui_solution"
+
+
+def opening_steps(s: int, sub: Any) -> tuple[list[GuiItem], str | None]:
+    """The GUI steps that open what subtask `s` works on where set-up held it back (`sub.opens`): the same
+    program started from a command line opened through the GUI, then its window awaited; and why there are none."""
+    from jarvis_pytest.devices.platforms import spec
+    from jarvis_pytest.tasks.model import GuiStep
+
+    steps: list[dict] = []
+    for opener in sub.opens or []:
+        facts = spec(opener.platform or sub.platform)
+        app, args = (opener.app, opener.args) if opener.type == "launch" else (None, [opener.path])
+        shell = facts.gui_shell_steps(facts.start_command(app, args), "open what this subtask works on")
+        if not shell:
+            return [], f"subtask {s} ({sub.template}) opens a file an upstream subtask made, and the {facts.label} " \
+                       "device has no way known to do that through the GUI"
+        steps += shell
+    if steps and sub.window:
+        steps.append({"type": "WAIT_FOR", "target": {"window": sub.window}, "timeout": 30, "platform": sub.platform,
+                      "note": "the subtask's window shows what it opened"})
+    return [GuiItem(s, step.get("platform") or sub.platform, i, GuiStep.model_validate(step), "opens")
+            for i, step in enumerate(steps)], None
 
 
 def gui_plan(subtasks: Sequence[Any], backends: dict[str, str] | None = None) -> tuple[list[GuiItem], str | None]:
@@ -204,9 +245,11 @@ def gui_plan(subtasks: Sequence[Any], backends: dict[str, str] | None = None) ->
             return [], f"subtask {s} ({sub.template}) cannot be solved through the GUI on {backend}: {reason}"
         if not sub.gui_solution:
             return [], f"subtask {s} ({sub.template}) has no GUI solution yet"
-        if sub.opens:
-            return [], f"subtask {s} ({sub.template}) opens a file an upstream subtask made: no GUI solution yet"
-        plan += [GuiItem(s, sub.platform, i, step) for i, step in enumerate(sub.gui_solution)]
+        opening, why = opening_steps(s, sub)
+        if why is not None:
+            return [], why
+        plan += opening
+        plan += [GuiItem(s, step.platform or sub.platform, i, step) for i, step in enumerate(sub.gui_solution)]
     return plan, None
 
 
@@ -237,7 +280,7 @@ class GuiOracleAgent:
             return self.failed
         if self.pending is not None and history and history[-1].error:  # the device refused our last action
             item = self.pending
-            return self._fail(item.platform, f"gui-oracle: gui_solution[{item.index}] of subtask {item.subtask} "
+            return self._fail(item.platform, f"gui-oracle: {item.origin}[{item.index}] of subtask {item.subtask} "
                                              f"failed: {history[-1].error}")
         self.pending = None
         if not self.queue:
@@ -245,15 +288,15 @@ class GuiOracleAgent:
         item = self.queue.pop(0)
         step = item.step
         platform = self.last_platform = item.platform
-        where = f"gui_solution[{item.index}]" + (f" of subtask {item.subtask}" if item.subtask else "")
+        where = f"{item.origin}[{item.index}]" + (f" of subtask {item.subtask}" if item.subtask else "")
         note = f" ({step.note})" if step.note else ""
         if step.target is None:
             self.pending = item
             return AgentStep(platform=platform, action=step.action(), reasoning=f"{where}{note}",
-                             extra={"gui_step": item.index})
+                             extra={"gui_step": item.index, "origin": item.origin})
         what = describe_target(step.target)
         found = await_target(self.views[platform], step.target, step.timeout, gone=step.gone)
-        seen = {"gui_step": item.index, "target": step.target.model_dump(mode="json", by_alias=True,
+        seen = {"gui_step": item.index, "origin": item.origin, "target": step.target.model_dump(mode="json", by_alias=True,
                                                                           exclude_none=True),
                 "waited": found.seconds, "reads": found.reads}
         if found.node is not None:

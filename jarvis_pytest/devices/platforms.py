@@ -7,12 +7,14 @@ from __future__ import annotations
 
 import ntpath
 import posixpath
+import shlex
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, Sequence
 
 from jarvis_pytest.errors import ConfigError
 
 PathStyle = Literal["posix", "windows"]
+SHELL_TITLE = "jarvis-shell"  # the title of a command line a GUI solution opens (`PlatformSpec.gui_shell_steps`)
 
 
 @dataclass(frozen=True)
@@ -46,6 +48,11 @@ class PlatformSpec:
     #                                  desktop.ini, Thumbs.db): folder checks pass over one only if it is such a file
     drive_root: str | None = None    # where the transfer drive shows as a drive letter (Windows: S:\); None: it
     #                                  is reached over HTTP only
+    # a command line through the GUI alone (GUI solutions of built-in tasks, `gui_shell_steps`): the GUI steps that
+    # put one on screen, ready, with the keyboard in it, and the line that titles its window SHELL_TITLE (None: no
+    # such recipe is known for the platform)
+    gui_shell_open: tuple[dict, ...] | None = None
+    gui_shell_title: str | None = None
 
     @property
     def sep(self) -> str:
@@ -100,6 +107,28 @@ class PlatformSpec:
             return get_command(url, path, password)
         return f"curl -fsS -H 'PW: {password}' -o '{path}' '{url}'"
 
+    def gui_shell_steps(self, command: str, note: str) -> list[dict]:
+        """GUI solution steps that run `command` in the platform's command line opened through the GUI: the window
+        is titled first, the command typed with `&& exit`, and its window must go within a minute — it stays, with
+        the error on screen, where the command failed. Empty where the platform has no such recipe."""
+        if self.gui_shell_open is None or self.gui_shell_title is None:
+            return []
+        window = {"window": SHELL_TITLE}
+        return [*(dict(step, platform=self.name) for step in self.gui_shell_open),
+                {"type": "TYPING", "text": self.gui_shell_title + "\n", "platform": self.name},
+                {"type": "WAIT_FOR", "target": window, "timeout": 20, "platform": self.name},
+                {"type": "TYPING", "text": f"{command} && exit\n", "platform": self.name, "note": note},
+                {"type": "WAIT_FOR", "target": window, "gone": True, "timeout": 60, "platform": self.name,
+                 "note": "the command line closes only if the command succeeded"}]
+
+    def start_command(self, app: str | None, args: Sequence[str] = ()) -> str:
+        """A command line that starts `app` with `args` (without `app`: opens the file `args[0]` with its default
+        program) and returns at once, the program left running after the command line closes."""
+        if self.shell == "cmd":
+            return " ".join(['start ""', *([app] if app else []), *(f'"{a}"' for a in args)])
+        words = [app, *args] if app else ["exo-open", *args]
+        return f"setsid -f {shlex.join(words)} >/dev/null 2>&1"
+
     def drive_path(self, url: str) -> str:
         """Where a drive URL's file is on this device's drive letter (Windows: `S:\\data\\name`)."""
         if "://" not in url:
@@ -120,6 +149,14 @@ PLATFORMS: dict[str, PlatformSpec] = {
         text_codepage="cp1252",
         file_facts="windows_probe", hidden_by="attributes", trash="$Recycle.Bin",
         shell_files=("desktop.ini", "thumbs.db"), user_roots=("C:\\Users", "C:\\temp", "S:\\"),
+        # Wine's desktop: its taskbar's Start button, bottom left, opens a menu whose last item is Run...; win+r does
+        # nothing there. The console's title is set by cmd's `title` once the command succeeded.
+        gui_shell_open=({"type": "CLICK", "x": 28, "y": 1070, "note": "the taskbar's Start button"},
+                        {"type": "CLICK", "x": 40, "y": 1050, "note": "Start > Run..."},
+                        {"type": "WAIT_FOR", "target": {"window": "Run", "control": {"class": "Edit"}}},
+                        {"type": "TYPING", "text": "cmd.exe\n"},
+                        {"type": "WAIT_FOR", "target": {"window": "\\cmd.exe"}, "timeout": 30}),
+        gui_shell_title=f"title {SHELL_TITLE}",
         # the device's Python writes the date to a file that cmd's own `type` prints: under Wine the output of a
         # program the control server's cmd starts never reaches the server, that of cmd's built-ins does
         today_command=('"C:\\jarvis\\python\\pythonw.exe" -I -c "import datetime,os; open(os.path.join(os.environ['
@@ -129,7 +166,15 @@ PLATFORMS: dict[str, PlatformSpec] = {
         name="ubuntu", label="Ubuntu", device_name="Ubuntu desktop", screen=(1920, 1080), path_style="posix",
         case_insensitive_paths=False, home="/home/user", writable_roots=("/home/user", "/tmp"),
         transfer_folder="/tmp/transfer", shell="bash", desktop_user="user",
-        trash="/home/user/.local/share/Trash", user_roots=("/home/user", "/tmp", "/var/tmp", "/dev/shm")),
+        trash="/home/user/.local/share/Trash", user_roots=("/home/user", "/tmp", "/var/tmp", "/dev/shm"),
+        # XFCE's keyboard shortcut for the terminal; its window shows before its shell's prompt and before it has the
+        # keyboard: the prompt awaited, the terminal clicked. (Its text in AT-SPI lags behind the screen: the window
+        # title tells the state.) The prompt would set the title again: it is replaced by one that does not.
+        gui_shell_open=({"type": "HOTKEY", "keys": ["ctrl", "alt", "t"], "note": "XFCE: open a terminal"},
+                        {"type": "WAIT_FOR", "timeout": 30, "note": "its shell's prompt",
+                         "target": {"window": "Terminal - ", "control": {"role": "terminal", "text": "*$"}}},
+                        {"type": "CLICK", "target": {"window": "Terminal - ", "control": {"role": "terminal"}}}),
+        gui_shell_title=f"PS1='$ '; printf '\\033]0;{SHELL_TITLE}\\007'"),
 }
 PLATFORM_NAMES: tuple[str, ...] = tuple(PLATFORMS)
 

@@ -67,7 +67,7 @@ def params(kind: str, options: JarvisOptions, config: pytest.Config) -> list[Any
     task of the dataset files; the application markers they use are declared first, so `-m app_...` works
     quietly. The library's and datasets' files are read and checked now; atomic instances are made on use."""
     from jarvis_pytest.tasks.dataset import load_tasks
-    from jarvis_pytest.tasks.instances import atomic_task, instance_id
+    from jarvis_pytest.tasks.instances import atomic_task, instance_id, with_gui_solutions
     from jarvis_pytest.tasks.library import load_library
 
     if kind == "atomic":
@@ -75,8 +75,9 @@ def params(kind: str, options: JarvisOptions, config: pytest.Config) -> list[Any
         found = [TaskCase(instance_id(t.id, n), "atomic", [t.platform], [t.app] if t.app else [], 1,
                           functools.partial(atomic_task, t, n, source=library.sources.get(t.id)))
                  for t in library.templates for n in range(options.instances)]
-    else:
-        found = [TaskCase.of(t) for t in load_tasks(options.datasets)]
+    else:  # each subtask with its template's current GUI solution (`with_gui_solutions`)
+        library = load_library(options.library)
+        found = [TaskCase.of(with_gui_solutions(t, library)) for t in load_tasks(options.datasets)]
     for app in sorted({app for c in found for app in c.apps}):
         config.addinivalue_line("markers", f"{app_marker(app)}: tasks of the application {app}")
     return [_param(c) for c in found]

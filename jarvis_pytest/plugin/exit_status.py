@@ -4,7 +4,8 @@ pytest exits 1 when any test failed. For a run with an agent under evaluation th
 (`make bench AGENT=<model>`, `pytest tasks --agent X`) a failed job. So a run whose only failures are tasks the
 agent failed (status `failed`: the evaluators said no) exits 0. It keeps pytest's status when
 
-- the agent is the oracle (`--agent oracle`, `--qc`): its solutions must pass, any failure is a broken task;
+- the agent is the oracle (`--agent oracle`, `--qc`) or the GUI oracle (`--agent gui-oracle`): their solutions
+  must pass, any failure is a broken task or a broken GUI solution;
 - anything else failed: an infrastructure error, a task `timeout`, a failure outside a task's test body (set-up,
   teardown), a test that is not a task;
 - pytest's status is not "tests failed" (interrupted, usage error, internal error, nothing collected).
@@ -87,9 +88,11 @@ class ExitStatus:
 def register(config: pytest.Config, options: Any, agent: Callable[[], Any]) -> None:
     """Register the exit status's hooks for a run with an agent (`options`: the run's `JarvisOptions`; `agent`:
     gives the loaded agent, or None). The oracle is `--agent oracle`, `--qc`, or the built-in oracle's class
-    named as module:Class."""
+    named as module:Class, or exactly the built-in GUI oracle."""
+    from jarvis_pytest.agents.gui_oracle import GuiOracleAgent
     from jarvis_pytest.agents.oracle import OracleAgent
 
     if options.agent:
         config.pluginmanager.register(ExitStatus(oracle=lambda: options.qc or options.agent == ORACLE
-                                                 or isinstance(agent(), OracleAgent)), PLUGIN_NAME)
+                                                 or isinstance(agent(), OracleAgent)
+                                                 or type(agent()) is GuiOracleAgent), PLUGIN_NAME)

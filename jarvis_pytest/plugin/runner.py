@@ -5,10 +5,11 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable
 
+from jarvis_pytest.agents.gui_oracle import GuiOracleAgent
 from jarvis_pytest.agents.oracle import brief as brief_oracle
 from jarvis_pytest.agents.protocol import Agent, TaskContext
 from jarvis_pytest.devices.actions import PLATFORMS
@@ -121,9 +122,12 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
         failed_reset = begin(ctx.agent, TaskContext(task_id=task.id, instruction=task.instruction,
                                                     platforms=platforms, transfer=transfer), ctx.limits)
         brief_oracle(ctx.agent, subtasks, env.devices, result.backends)  # to the built-in oracles only
+        limits = ctx.limits
+        if type(ctx.agent) is GuiOracleAgent:  # a proof: its whole plan gets steps, as in `jarvis qc`'s GUI check
+            limits = replace(limits, max_steps=max(limits.max_steps, len(ctx.agent.queue) + 5))
         if failed_reset is None:
             unused = {p: idle_observation(p) for p in PLATFORMS if p not in env.devices}
-            outcome = run_loop(ctx.agent, env.devices, unused, recorder, ctx.limits, progress)
+            outcome = run_loop(ctx.agent, env.devices, unused, recorder, limits, progress)
         else:  # the agent's own code failed before its first step: its failure, judged on the untouched devices
             recorder.step(StepRecord(index=0, platform=None, action=None, error=failed_reset))
             outcome = progress

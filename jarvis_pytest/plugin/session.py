@@ -344,7 +344,7 @@ class JarvisSession:
     def _run_case(self, request: pytest.FixtureRequest, case: cases.TaskCase) -> TaskResult:
         agent = self.ensure_agent()
         task = case.task
-        reason = skip_reason(task, self.backends)
+        reason = skip_reason(task, self.backends, agent)
         if reason is not None:  # a device this machine lacks: skipped with the reason, counted apart, never failed
             result = TaskResult(task_id=task.id, category=task.category,
                                 platforms=list(task_platforms(task)), instruction=task.instruction,

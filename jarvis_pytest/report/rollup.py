@@ -487,7 +487,7 @@ def render_markdown(s: Summary) -> str:
     out += _md_table(["", *(_LABEL[c] for c in CATEGORIES), "Total"],
                      [[label, *(str(d.get(c, 0)) for c in CATEGORIES), str(sum(d.values()))]
                       for label, d in (("Errors (excluded)", s.errors), ("Timeouts (excluded)", s.timeouts),
-                                       ("Skipped: no device here", s.skipped), ("Unfinished", s.unfinished),
+                                       ("Skipped: cannot run here", s.skipped), ("Unfinished", s.unfinished),
                                        ("Never ran", s.not_run))])
     out += _notes(s)
     if s.warnings:
@@ -516,7 +516,7 @@ def render_terminal(s: Summary) -> str:
                                                   for b in s.by_subtasks))
     errs = ", ".join(f"{c} {n}" for c, n in s.errors.items() if n) or "0"
     lines.append(f"{s.tasks} tasks counted; errors (not in rates): {errs}; timeouts: {sum(s.timeouts.values())}; "
-                 f"skipped (no device here): {sum(s.skipped.values())}; "
+                 f"skipped (cannot run here): {sum(s.skipped.values())}; "
                  f"unfinished: {sum(s.unfinished.values())}; never ran: {sum(s.not_run.values())}"
                  "; SSR = mean of per-task ratios, (k/n) = subtasks")
     if s.timing is not None:

@@ -63,8 +63,8 @@ def sample_inputs(template: TaskTemplate, rng: random.Random) -> dict[str, Scala
 def _render_steps(steps: list, model: type | TypeAdapter, values: Mapping[str, Scalar], where: Where) -> list:
     out = []
     for i, step in enumerate(steps):
-        data = render_data(step.model_dump(mode="json"), values,
-                           Where(where.path, where.task, f"{where.field}[{i}]"))
+        data = render_data(step.model_dump(mode="json"), values, Where(where.path, where.task, f"{where.field}[{i}]"),
+                           keep_types=model is not GuiStep)  # a GUI step's `{{number}}` is text to type
         data.pop("provides", None)
         out.append(model.validate_python(data) if isinstance(model, TypeAdapter) else model.model_validate(data))
     return out
@@ -185,3 +185,30 @@ def atomic_instances(library: "Library", seeds_per_template: int = 2) -> list[Ta
     return [atomic_task(t, n, source=library.sources.get(t.id)) for t in library.templates
             for n in range(seeds_per_template)]
 
+
+
+def with_gui_solutions(task: Task, library: "Library") -> Task:
+    """`task` with each subtask's GUI solution (and GUI infeasibility) rendered from its template in `library` (the
+    built-in transfer's from code) with the subtask's own slot values. Dataset files keep the paper's format, with
+    no GUI solutions: they follow the templates as those gain them. A subtask whose template is not in the library,
+    or that has a GUI solution of its own, is left as it is."""
+    from jarvis_pytest.tasks.transfer import is_transfer, transfer_template
+
+    subtasks = []
+    for i, sub in enumerate(task.formatted_subtasks):
+        if sub.gui_solution is None and sub.gui_infeasible is None:
+            try:
+                template = (transfer_template(sub.source_platform, sub.platform)
+                            if is_transfer(sub.template) and sub.source_platform else library.get(sub.template))
+            except (KeyError, ValueError):
+                template = None
+            if template is not None and (template.gui_solution or template.gui_infeasible):
+                values = {name: slot.value for name, slot in {**sub.input, **sub.output}.items()}
+                where = Where(None, task.id, f"formatted_subtasks[{i}]")
+                sub = sub.model_copy(update={
+                    "gui_solution": _render_steps(template.gui_solution, GuiStep, values,
+                                                  where.at("gui_solution")) or None,
+                    "gui_infeasible": {k: render_text(v, values, where.at(f"gui_infeasible.{k}"))
+                                       for k, v in sorted(template.gui_infeasible.items())} or None})
+        subtasks.append(sub)
+    return task.model_copy(update={"formatted_subtasks": subtasks})

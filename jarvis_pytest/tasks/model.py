@@ -223,6 +223,8 @@ class GuiStep(BaseModel):
     timeout: float = Field(default=10.0, gt=0, le=120, description="seconds the target gets to show (or, "
                            "with `gone`, to go)")
     gone: bool = Field(default=False, description="WAIT_FOR only: wait until no such target shows")
+    platform: Platform | None = Field(default=None, description="on this platform's device (default: the "
+                                      "subtask's; the built-in transfer uploads on its source)")
     note: str | None = None
 
     @model_validator(mode="before")

@@ -115,17 +115,19 @@ def render_text(text: str, values: Mapping[str, Scalar], where: Where = Where())
     return PLACEHOLDER.sub(sub, text)
 
 
-def render_data(obj: Any, values: Mapping[str, Scalar], where: Where = Where()) -> Any:
-    """Nested data with every string rendered; a string that is one whole placeholder keeps the value's type."""
+def render_data(obj: Any, values: Mapping[str, Scalar], where: Where = Where(), *, keep_types: bool = True) -> Any:
+    """Nested data with every string rendered; a string that is one whole placeholder keeps the value's type
+    (without `keep_types`, as for GUI steps, where typed text and shown text stay text, it becomes its text)."""
     if isinstance(obj, str):
         whole = PLACEHOLDER.fullmatch(obj)
-        if whole:
+        if whole and keep_types:
             return _lookup(Placeholder(whole.group(1), whole.group(2), whole.group(0)), values, where)
         return render_text(obj, values, where)
     if isinstance(obj, Mapping):
-        return {key: render_data(item, values, where.at(str(key))) for key, item in obj.items()}
+        return {key: render_data(item, values, where.at(str(key)), keep_types=keep_types)
+                for key, item in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [render_data(item, values, Where(where.path, where.task, f"{where.field}[{i}]"))
+        return [render_data(item, values, Where(where.path, where.task, f"{where.field}[{i}]"), keep_types=keep_types)
                 for i, item in enumerate(obj)]
     return obj
 

@@ -13,7 +13,9 @@ purpose is not compared, and that subtask's evaluators take the arrived bytes as
 
 The oracle solution uploads on the source and downloads on the destination with each device's own means
 (`PlatformSpec.drive_put_command`/`drive_get_command`: curl on Linux, a copy to the drive letter `S:` on Windows,
-where Wine has no curl.exe), against the copyparty flavour.
+where Wine has no curl.exe), against the copyparty flavour. Its GUI solution types the same commands into a
+command line each device opens through its GUI (XFCE's terminal shortcut; Wine's Start > Run... > cmd.exe), as an
+agent told the drive's address would; a browser on the drive's web page would be another way.
 """
 
 from __future__ import annotations
@@ -24,8 +26,8 @@ from typing import Sequence
 
 from jarvis_pytest.devices.platforms import spec
 from jarvis_pytest.infra.transfer_server import TRANSFER_ALIAS, TRANSFER_FOLDER, TRANSFER_PASSWORD, TRANSFER_PORT
-from jarvis_pytest.tasks.model import (Command, Edge, EvaluatorSpec, InputSlot, OutputSlot, SolutionStep, Subtask,
-                                       TaskTemplate)
+from jarvis_pytest.tasks.model import (Command, Edge, EvaluatorSpec, GuiStep, InputSlot, OutputSlot, SolutionStep,
+                                       Subtask, TaskTemplate)
 from jarvis_pytest.tasks.types import FILE_TYPE
 
 TRANSFER_INPUT = "transferred_file"
@@ -64,9 +66,20 @@ def transfer_template(source: str, dest: str) -> TaskTemplate:
         solution=[SolutionStep(command=upload, platform=source, user=spec(source).desktop_user,
                                note="upload to the network drive"),
                   SolutionStep(command=download, user=spec(dest).desktop_user, note="download from the network drive")],
+        gui_solution=_gui_solution(source, dest, upload, download),
         source_platform=source,
         description=f"Built-in: move a file from the {src} to the {dst} through the network drive.",
     )
+
+
+def _gui_solution(source: str, dest: str, upload: str, download: str) -> list[GuiStep]:
+    """The same commands typed into each device's command line opened through the GUI (`PlatformSpec.
+    gui_shell_steps`), an agent's own way; none where a platform has no such recipe (Android)."""
+    up = spec(source).gui_shell_steps(upload, "upload to the network drive")
+    down = spec(dest).gui_shell_steps(download, "download from the network drive")
+    if not up or not down:
+        return []
+    return [GuiStep.model_validate(step) for step in up + down]
 
 
 def is_transfer(template_id: str) -> bool:

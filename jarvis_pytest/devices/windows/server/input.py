@@ -79,12 +79,36 @@ def _unicode_events(ch: str) -> list[w.INPUT]:
     return out
 
 
+_KEY_SCANS: dict[str, int] = {}
+
+
+def key_scan(ch: str) -> int:
+    """VkKeyScanW's answer for `ch` (virtual key | 0x100 for Shift; -1: no key), asking the layout key by key where
+    VkKeyScanW finds none. Under Wine on Xvfb it finds no key for ( and ), which Shift+9 and Shift+0 type; typed
+    as Unicode instead (VK_PACKET) they never reached a Wine console, so an agent's `for /f (...)` lost them."""
+    if ch not in _KEY_SCANS:
+        scan = w.VkKeyScanW(ch)
+        if scan == -1 or scan & 0xFF == 0xFF:
+            scan = -1
+            state, buf = (ctypes.c_ubyte * 256)(), ctypes.create_unicode_buffer(8)
+            for vk in range(0x20, 0xFF):
+                for shift in (False, True):
+                    state[0x10] = 0x80 if shift else 0
+                    if w.ToUnicode(vk, w.MapVirtualKeyW(vk, 0), state, buf, 8, 0) == 1 and buf.value[:1] == ch:
+                        scan = vk | (0x100 if shift else 0)
+                        break
+                if scan != -1:
+                    break
+        _KEY_SCANS[ch] = scan
+    return _KEY_SCANS[ch]
+
+
 def _char_events(ch: str) -> list[w.INPUT]:
     """The key events typing one character: its key (and Shift) when the layout has it among printable ASCII,
     else the character itself as Unicode."""
     if " " <= ch <= "~":
-        scan = w.VkKeyScanW(ch)
-        if scan != -1 and scan & 0xFF != 0xFF and not scan & 0x600:  # no Ctrl or Alt needed
+        scan = key_scan(ch)
+        if scan != -1 and not scan & 0x600:  # no Ctrl or Alt needed
             vk, shift = scan & 0xFF, bool(scan & 0x100)
             keys = [_key_event(vk, False), _key_event(vk, True)]
             return [_key_event(0xA0, False), *keys, _key_event(0xA0, True)] if shift else keys

@@ -142,6 +142,8 @@ GetDC = _fn(user32, "GetDC", W.HDC, W.HWND)
 ReleaseDC = _fn(user32, "ReleaseDC", ctypes.c_int, W.HWND, W.HDC)
 MapVirtualKeyW = _fn(user32, "MapVirtualKeyW", W.UINT, W.UINT, W.UINT)
 VkKeyScanW = _fn(user32, "VkKeyScanW", ctypes.c_short, W.WCHAR)
+ToUnicode = _fn(user32, "ToUnicode", ctypes.c_int, W.UINT, W.UINT, ctypes.POINTER(ctypes.c_ubyte), W.LPWSTR,
+                ctypes.c_int, W.UINT)
 EnumWindows = _fn(user32, "EnumWindows", W.BOOL, WNDENUMPROC, W.LPARAM)
 EnumChildWindows = _fn(user32, "EnumChildWindows", W.BOOL, W.HWND, WNDENUMPROC, W.LPARAM)
 GetWindow = _fn(user32, "GetWindow", W.HWND, W.HWND, W.UINT)
