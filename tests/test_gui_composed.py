@@ -90,8 +90,12 @@ def test_what_set_up_held_back_is_opened_from_a_command_line_first(tasks):
 
 
 def test_a_subtask_without_a_gui_solution_still_stops_the_plan(tasks):
-    plan, why = gui_plan(tasks["md-0102"].formatted_subtasks, BACKENDS)  # a wallpaper through the Control Panel
-    assert plan == [] and "has no GUI solution yet" in why or "cannot be solved" in why, why
+    subs = list(tasks["md-0144"].formatted_subtasks)
+    subs[2] = subs[2].model_copy(update={"gui_solution": None})
+    plan, why = gui_plan(subs, BACKENDS)
+    assert plan == [] and why == "subtask 2 (ubuntu-thunar-copy_file) has no GUI solution yet", why
+    subs[2] = subs[2].model_copy(update={"gui_infeasible": {"docker": "no way"}})
+    assert "cannot be solved through the GUI on docker: no way" in gui_plan(subs, BACKENDS)[1]
 
 
 def test_a_template_missing_from_the_library_leaves_the_subtask_as_it_is(tmp_path, tasks):
