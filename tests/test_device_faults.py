@@ -111,7 +111,9 @@ def test_a_device_fault_runs_the_work_again_on_fresh_devices(tmp_path, pool):
     assert [len(n.device_faults) for n in result.qc_negatives] == [1] + [0] * (len(result.qc_negatives) - 1)
     assert "injected fault #3" in result.qc_negatives[0].device_faults[0]
     assert not any(n.passed or n.error for n in result.qc_negatives)
-    assert environments.handed == 2 + len(result.qc_negatives) + 1
+    gui_checks = sum(1 for g in result.qc_gui or [] if g.state in ("passed", "failed"))  # each on fresh devices
+    assert [g.state for g in result.qc_gui or []] in ([], ["passed"], ["none"]), result.qc_gui
+    assert environments.handed == 2 + len(result.qc_negatives) + 1 + gui_checks
     [stored] = [json.loads(p.read_text()) for p in tmp_path.rglob("result.json")]
     assert stored["status"] == "passed" and len(stored["device_faults"]) == 1
 
