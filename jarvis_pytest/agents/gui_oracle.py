@@ -176,9 +176,9 @@ def await_target(view: A11yView, target: Any, timeout: float, *, gone: bool = Fa
             answer = view.tree()
         except InfrastructureError:
             failed += 1
-            if (clock() - start >= timeout and failed >= 2) and reads == 0:
-                raise
-            if clock() - start >= timeout and reads:
+            if clock() - start >= timeout and (reads or failed >= 2):
+                if not reads:
+                    raise
                 return Found(node if gone else None, title if gone else None, round(clock() - start, 3), reads,
                              truncated)
             sleep(POLL)
@@ -296,8 +296,8 @@ class GuiOracleAgent:
                              extra={"gui_step": item.index, "origin": item.origin})
         what = describe_target(step.target)
         found = await_target(self.views[platform], step.target, step.timeout, gone=step.gone)
-        seen = {"gui_step": item.index, "origin": item.origin, "target": step.target.model_dump(mode="json", by_alias=True,
-                                                                          exclude_none=True),
+        seen = {"gui_step": item.index, "origin": item.origin,
+                "target": step.target.model_dump(mode="json", by_alias=True, exclude_none=True),
                 "waited": found.seconds, "reads": found.reads}
         if found.node is not None:
             seen["resolved"] = {k: found.node[k] for k in ("role", "name", "class", "box") if k in found.node}

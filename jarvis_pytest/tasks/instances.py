@@ -70,6 +70,13 @@ def _render_steps(steps: list, model: type | TypeAdapter, values: Mapping[str, S
     return out
 
 
+def _gui_fields(template: TaskTemplate, values: Mapping[str, Scalar], where: Where) -> dict[str, Any]:
+    """A subtask's `gui_solution` and `gui_infeasible`, rendered from its template with `values` (None when empty)."""
+    return {"gui_solution": _render_steps(template.gui_solution, GuiStep, values, where.at("gui_solution")) or None,
+            "gui_infeasible": {k: render_text(v, values, where.at(f"gui_infeasible.{k}"))
+                               for k, v in sorted(template.gui_infeasible.items())} or None}
+
+
 def materialise(template: TaskTemplate, values: Mapping[str, Scalar], *, fed: Mapping[str, BoundSlot] | None = None,
                 source: object = None, gui: bool = False) -> Subtask:
     """Bind the inputs (sampled `values`, overridden by `fed` slots from upstream subtasks) and render the rest.
@@ -124,10 +131,7 @@ def materialise(template: TaskTemplate, values: Mapping[str, Scalar], *, fed: Ma
         config=config,
         evaluate=_render_steps(template.evaluate, EvaluatorSpec, every, where.at("evaluate")),
         solution=_render_steps(template.solution, SolutionStep, every, where.at("solution")),
-        gui_solution=(_render_steps(template.gui_solution, GuiStep, every, where.at("gui_solution")) or None)
-        if gui else None,
-        gui_infeasible=({k: render_text(v, every, where.at(f"gui_infeasible.{k}"))
-                         for k, v in sorted(template.gui_infeasible.items())} or None) if gui else None,
+        **(_gui_fields(template, every, where) if gui else {}),
         negatives=negatives,
         baseline=[p for p in baseline if p not in fed_values],
         consumes=dict(sorted(template.consumes.items())),
@@ -205,10 +209,6 @@ def with_gui_solutions(task: Task, library: "Library") -> Task:
             if template is not None and (template.gui_solution or template.gui_infeasible):
                 values = {name: slot.value for name, slot in {**sub.input, **sub.output}.items()}
                 where = Where(None, task.id, f"formatted_subtasks[{i}]")
-                sub = sub.model_copy(update={
-                    "gui_solution": _render_steps(template.gui_solution, GuiStep, values,
-                                                  where.at("gui_solution")) or None,
-                    "gui_infeasible": {k: render_text(v, values, where.at(f"gui_infeasible.{k}"))
-                                       for k, v in sorted(template.gui_infeasible.items())} or None})
+                sub = sub.model_copy(update=_gui_fields(template, values, where))
         subtasks.append(sub)
     return task.model_copy(update={"formatted_subtasks": subtasks})
