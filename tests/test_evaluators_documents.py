@@ -318,6 +318,15 @@ def test_files_libreoffice_wrote():
     assert not verdict.passed and "unreadable PDF" in verdict.reason
 
 
+def test_a_pdf_chromium_printed_reads_with_its_ligatures_unfolded():
+    """Chromium prints "fi" as one ligature glyph, extracted as "ﬁ": the title "Course Certificate" of the print_pdf
+    template's seed 2 failed its own oracle until the text was compared in compatibility form."""
+    pdf = (OFFICE / "chromium_print.pdf").read_bytes()  # chromium --headless --print-to-pdf on the Ubuntu device
+    assert check_pdf_text(pdf, ["Course Certificate", "Reference number: kestrel-24105", "Total: 690 EUR"]).passed
+    assert not check_pdf_text(pdf, ["Course Certificates"]).passed
+    assert not check_pdf_text(pdf, ["Total: 691 EUR"]).passed
+
+
 # --- the evaluators on a device's files ----------------------------------------------------------------------------
 
 def test_evaluators_pull_the_file_and_check_its_kind():

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from jarvis_pytest.agents.gui_oracle import (A11yView, GuiOracleAgent, await_target, backend_name, centre,
-                                             find_target, gui_plan, text_matches)
+                                             find_target, gui_plan, text_matches, visible_box)
 from jarvis_pytest.agents.oracle import OracleAgent, brief
 from jarvis_pytest.agents.protocol import HistoryEntry, TaskContext
 from jarvis_pytest.errors import ConfigError, InfrastructureError
@@ -273,6 +273,42 @@ def test_a_target_is_awaited_until_it_shows_and_no_longer():
     stays = await_target(FakeView(ATSPI), target(window="Find and Replace"), 1, gone=True, clock=clock,
                          sleep=clock.sleep)
     assert stays.node is not None and 1 <= clock.now < 1.5
+
+
+def test_a_target_off_the_screen_is_not_seen_and_a_click_lands_on_its_visible_part():
+    """A control laid out beyond the screen's right or bottom edge (a long list scrolled, a window partly
+    off-screen) is not a target a person could click; one partly on screen is clicked where it shows."""
+    below = {"role": "desktop frame", "name": "", "children": [
+        {"role": "frame", "name": "Long list", "box": [100, 100, 400, 2000], "children": [
+            {"role": "list item", "name": "far", "box": [100, 1500, 400, 20]},
+            {"role": "list item", "name": "edge", "box": [100, 1070, 400, 20]}]}]}
+    screen = (1920, 1080)
+    assert find_target(below, target(control={"name": "far"}), screen) == (None, None)
+    assert find_target(below, target(control={"name": "far"}))[0] is not None  # the screen not known: unbounded
+    edge, _ = find_target(below, target(control={"name": "edge"}), screen)
+    assert centre(edge["box"], screen) == (300, 1075) and centre(edge["box"]) == (300, 1080)
+    assert centre([-100, -10, 300, 40], screen) == (100, 15)
+    assert visible_box([1920, 0, 10, 10], screen) is None and visible_box([0, 0, 0, 5]) is None
+
+
+def test_a_target_to_click_is_awaited_until_it_stops_moving():
+    """A bubble or dialog that slides into place is clicked where it stopped, as a person would (Chromium's bookmark
+    bubble: a click on 'Done' while it moved did not take, in one CI run)."""
+    def at(y):
+        return {"role": "desktop frame", "name": "", "children": [
+            {"role": "dialog", "name": "Bookmark added", "box": [1400, y, 300, 200], "children": [
+                {"role": "push button", "name": "Done", "box": [1600, y + 150, 60, 30]}]}]}
+    done = target(control={"role": "push button", "name": "Done"})
+    clock = FakeClock()
+    view = FakeView(at(20), at(60), at(80), at(80))
+    found = await_target(view, done, 10, settled=True, clock=clock, sleep=clock.sleep)
+    assert found.node["box"] == [1600, 230, 60, 30] and found.reads == 4
+    clock = FakeClock()
+    assert await_target(FakeView(at(20), at(60)), done, 10, clock=clock, sleep=clock.sleep).reads == 1  # to see
+    clock = FakeClock()
+    moving = FakeView(*[at(y) for y in range(0, 400, 10)])
+    late = await_target(moving, done, 2, settled=True, clock=clock, sleep=clock.sleep)
+    assert late.node is not None and 2 <= clock.now < 2.5  # never still: the last box, once the time is up
 
 
 class FailingView:

@@ -129,17 +129,10 @@ def play_step(page: Page, eyes: A11yView, step) -> tuple[int, int, float] | None
         page.get_by_test_id("keyboard").focus()
         page.keyboard.type(step.action().text)
     elif step.type == "CLICK":
-        # as a person does, click once the control has settled where it shows: two reads 0.3 s apart give the same
-        # box (in one make test under load the click on Mousepad's "Replace all in" box did not take, likely sent
-        # while the dialog was still being laid out, and "Replace All" never showed)
-        box, deadline = None, time.monotonic() + step.timeout
-        while True:
-            found = await_target(eyes, step.target, max(deadline - time.monotonic(), 0.1))
-            assert found.node is not None, f"the person does not see {step.target}"
-            if found.node["box"] == box or time.monotonic() > deadline:
-                break
-            box = found.node["box"]
-            time.sleep(0.3)
+        # as a person does, click once the control has settled where it shows (in one make test under load the click
+        # on Mousepad's "Replace all in" box did not take, likely sent while the dialog was still being laid out)
+        found = await_target(eyes, step.target, step.timeout, settled=True)
+        assert found.node is not None, f"the person does not see {step.target}"
         point = centre(found.node["box"])
         return (*point, click_device(page, *point))
     else:

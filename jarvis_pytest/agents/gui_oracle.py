@@ -67,9 +67,20 @@ def _top_levels(root: dict) -> Iterator[dict]:
             yield child
 
 
-def _on_screen(node: dict) -> bool:
-    box = node.get("box")
-    return bool(box) and box[2] > 0 and box[3] > 0 and box[0] + box[2] > 0 and box[1] + box[3] > 0
+def visible_box(box: Sequence[int] | None, screen: tuple[int, int] | None = None) -> list[int] | None:
+    """The part of `box` [x, y, w, h] on the screen (`screen`: width, height; None: unbounded right and below),
+    None where no pixel of it is."""
+    if not box or box[2] <= 0 or box[3] <= 0:
+        return None
+    right, bottom = box[0] + box[2], box[1] + box[3]
+    if screen is not None:
+        right, bottom = min(right, screen[0]), min(bottom, screen[1])
+    left, top = max(box[0], 0), max(box[1], 0)
+    return [left, top, right - left, bottom - top] if right > left and bottom > top else None
+
+
+def _on_screen(node: dict, screen: tuple[int, int] | None = None) -> bool:
+    return visible_box(node.get("box"), screen) is not None
 
 
 def _walk(node: dict, path: tuple[int, ...] = ()) -> Iterator[tuple[tuple[int, ...], dict]]:
@@ -90,20 +101,21 @@ def _control_matches(node: dict, control: Any) -> bool:
     return True
 
 
-def find_target(tree: dict, target: Any) -> tuple[dict | None, str | None]:
+def find_target(tree: dict, target: Any, screen: tuple[int, int] | None = None) -> tuple[dict | None, str | None]:
     """The node `target` (`tasks.model.GuiTarget`) names in an accessibility tree (the `tree` of `a11y_tree()`),
     with the title of the window it was found in: a `control` (the first match in the tree's order), a node
     showing `text` (the innermost one: a label, not the panel around it) or the `window` itself; the `index`-th
-    match. Only nodes with a box on screen count. (None, None) when nothing matches."""
+    match. Only nodes with a box on the screen count (`screen`: its width and height, where known).
+    (None, None) when nothing matches."""
     windows = [w for w in _top_levels(tree) if target.window is None or title_matches(target.window, w.get("name", ""))]
     if target.control is None and target.text is None:
-        shown = [w for w in windows if _on_screen(w)]
+        shown = [w for w in windows if _on_screen(w, screen)]
         node = shown[target.index] if len(shown) > target.index else None
         return node, (node or {}).get("name")
     found: list[tuple[tuple[int, ...], dict, str]] = []
     for w_index, window in enumerate(windows):
         for path, node in _walk(window, (w_index,)):
-            if not _on_screen(node):
+            if not _on_screen(node, screen):
                 continue
             if target.control is not None:
                 hit = _control_matches(node, target.control)
@@ -162,15 +174,24 @@ class Found:
     truncated: bool
 
 
-def await_target(view: A11yView, target: Any, timeout: float, *, gone: bool = False,
-                 clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep) -> Found:
-    """Read `view`'s tree until `target` shows (with `gone`: until it no longer shows), at most `timeout` seconds
-    (one read at least). `Found.node` is the node found; with `gone` it is None once the target went. A read the
-    device fails (AT-SPI "did not receive a reply" while a program starts, on a loaded machine) is read again within
-    the timeout, twice at least; the device's error is raised only when no read at all succeeded."""
+def await_target(view: A11yView, target: Any, timeout: float, *, gone: bool = False, settled: bool = False,
+                 screen: tuple[int, int] | None = None, clock: Callable[[], float] = time.monotonic,
+                 sleep: Callable[[float], None] = time.sleep) -> Found:
+    """Read `view`'s tree until `target` shows on `screen` (with `gone`: until it no longer shows), at most
+    `timeout` seconds (one read at least). `Found.node` is the node found; with `gone` it is None once the target
+    went. With `settled` (a target about to be clicked) it shows once two reads in a row give it the same box, as a
+    person waits for a dialog or bubble to stop moving before clicking into it; when the timeout passes while it
+    still moves, the last box is taken. A read the device fails (AT-SPI "did not receive a reply" while a program
+    starts, on a loaded machine) is read again within the timeout, twice at least; the device's error is raised
+    only when no read at all succeeded."""
     start = clock()
     reads, truncated, failed = 0, False, 0
-    node, title = None, None
+    node, title, last_box = None, None, None
+
+    def timed_out() -> Found:  # gone: it still shows; settled: it shows, still moving; else: it did not show
+        keep = gone or (settled and node is not None)
+        return Found(node if keep else None, title if keep else None, round(clock() - start, 3), reads, truncated)
+
     while True:
         try:
             answer = view.tree()
@@ -179,23 +200,24 @@ def await_target(view: A11yView, target: Any, timeout: float, *, gone: bool = Fa
             if clock() - start >= timeout and (reads or failed >= 2):
                 if not reads:
                     raise
-                return Found(node if gone else None, title if gone else None, round(clock() - start, 3), reads,
-                             truncated)
+                return timed_out()
             sleep(POLL)
             continue
         reads += 1
         truncated = truncated or bool(answer.get("truncated"))
-        node, title = find_target(answer.get("tree") or {}, target)
-        if (node is None) == gone:
+        node, title = find_target(answer.get("tree") or {}, target, screen)
+        moving = settled and node is not None and node.get("box") != last_box
+        last_box = None if node is None else node.get("box")
+        if (node is None) == gone and not moving:
             return Found(node, title, round(clock() - start, 3), reads, truncated)
         if clock() - start >= timeout:
-            return Found(node if gone else None, title if gone else None, round(clock() - start, 3), reads,
-                         truncated)
+            return timed_out()
         sleep(POLL)
 
 
-def centre(box: Sequence[int]) -> tuple[int, int]:
-    """The centre of a box [x, y, w, h]."""
+def centre(box: Sequence[int], screen: tuple[int, int] | None = None) -> tuple[int, int]:
+    """The centre of a box [x, y, w, h]; with `screen`, of its part on the screen."""
+    box = visible_box(box, screen) or box
     return int(box[0] + box[2] // 2), int(box[1] + box[3] // 2)
 
 
@@ -295,7 +317,10 @@ class GuiOracleAgent:
             return AgentStep(platform=platform, action=step.action(), reasoning=f"{where}{note}",
                              extra={"gui_step": item.index, "origin": item.origin})
         what = describe_target(step.target)
-        found = await_target(self.views[platform], step.target, step.timeout, gone=step.gone)
+        shown = observations.get(platform)
+        screen = (shown.width, shown.height) if shown is not None and shown.width and shown.height else None
+        found = await_target(self.views[platform], step.target, step.timeout, gone=step.gone, screen=screen,
+                             settled=step.type != "WAIT_FOR")
         seen = {"gui_step": item.index, "origin": item.origin,
                 "target": step.target.model_dump(mode="json", by_alias=True, exclude_none=True),
                 "waited": found.seconds, "reads": found.reads}
@@ -310,7 +335,7 @@ class GuiOracleAgent:
                                        f"{found.seconds:g} s{note}")
         if found.node is None:
             return self._missing(platform, where, what, step, found, seen)
-        x, y = centre(found.node["box"])
+        x, y = centre(found.node["box"], screen)
         self.pending = item
         return AgentStep(platform=platform, action=step.action(x, y), extra=seen,
                          reasoning=f"{where}: {step.type} at the centre of {what} ({x}, {y}){note}")

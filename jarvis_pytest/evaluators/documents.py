@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import io
 import re
+import unicodedata
 import zipfile
 from dataclasses import dataclass, field
 
@@ -497,7 +498,9 @@ def document_heading_is(state: FinalState, path: str, text: str, level: int = 1,
 
 
 def check_pdf_text(data: bytes, contains: list[str], pages: int | None = None) -> Verdict:
-    """`data` is a PDF whose extracted text has every text of `contains` (and `pages` pages, when given)."""
+    """`data` is a PDF whose extracted text has every text of `contains` (and `pages` pages, when given). The text
+    is compared in compatibility form (NFKC): a PDF writer's typographic ligatures ("ﬁ" in "Certiﬁcate", as Chromium
+    prints) and full-width forms read as the letters they stand for."""
     from pypdf import PdfReader
     from pypdf.errors import PdfReadError
 
@@ -506,10 +509,10 @@ def check_pdf_text(data: bytes, contains: list[str], pages: int | None = None) -
         return Verdict.check(False, want, f"no PDF (starts {data[:8]!r})")
     try:
         reader = PdfReader(io.BytesIO(data))
-        text = norm(" ".join(page.extract_text() or "" for page in reader.pages))
+        text = norm(unicodedata.normalize("NFKC", " ".join(page.extract_text() or "" for page in reader.pages)))
     except (PdfReadError, Exception) as exc:
         return Verdict.check(False, want, f"an unreadable PDF ({exc})")
-    lacking = [t for t in contains if norm(t) not in text]
+    lacking = [t for t in contains if norm(unicodedata.normalize("NFKC", t)) not in text]
     wrong_pages = pages is not None and len(reader.pages) != int(pages)
     found = f"{len(reader.pages)} page(s)" + (f", lacking {lacking!r}" if lacking else "")
     return Verdict.check(not lacking and not wrong_pages, want, found)
