@@ -87,6 +87,55 @@ def test_what_set_up_held_back_is_opened_from_a_command_line_first(tasks):
     assert start.startswith("setsid -f thunar ") and start.endswith(" && exit\n")
     first_own = next(k for k, i in enumerate(plan) if i.subtask == 2 and i.origin == "gui_solution")
     assert all(plan.index(i) < first_own for i in opening)
+    # then the opened window awaited, as a person waits for it: Thunar's taskbar button shows the folder's name
+    shows = [i.step.target.control for i in opening if i.step.type == "WAIT_FOR" and i.step.target.control]
+    assert [(c.role, c.name) for c in shows][-1] == ("toggle button", "*transfer*"), shows  # /tmp/transfer
+    assert opening[-1].step.type == "WAIT"
+
+
+def test_the_windows_set_up_opened_are_named_by_their_titles_when_the_agent_starts():
+    """A composed task's subtask brings its window to the front through the GUI; where its template names no
+    `window`, the window its set-up opened is found by the title it shows once set-up is done."""
+    from jarvis_pytest.plugin.setup_steps import run_setup, window_titles
+    from jarvis_pytest.tasks.model import Subtask
+
+    class Desktop:
+        def __init__(self):
+            self.shown = [{"id": 7, "title": "Desktop", "focused": True}]
+            self.focused_by_setup = []
+
+        def windows(self):
+            return [dict(w) for w in self.shown]
+
+        def launch(self, app, *args):
+            steals = app != "gimp"  # GIMP's window shows under the keyboard's window (XFCE's focus stealing guard)
+            for w in self.shown:
+                w["focused"] = w["focused"] and not steals
+            self.shown.append({"id": 10 + len(self.shown), "title": f"{args[0]} - {app}", "focused": steals})
+            return True
+
+        def focus_window(self, title=None, *, id=None, timeout=5.0):
+            self.focused_by_setup.append(title)
+            for w in self.shown:
+                w["focused"] = w["title"] == title
+            return {}
+
+        def upload(self, path, data):
+            pass
+
+    def sub(app, path):
+        return Subtask.model_validate({"template": f"t-{app}", "platform": "ubuntu", "app": app, "instruction": "x",
+                                       "input": {}, "output": {}, "evaluate": [],
+                                       "config": [{"type": "upload_file", "path": path, "content": "x"},
+                                                  {"type": "launch", "app": app, "args": [path]}]})
+
+    desktop = Desktop()
+    opened = run_setup([sub("mousepad", "/tmp/a.txt"), sub("gimp", "/tmp/b.png")], {"ubuntu": desktop})
+    assert opened == {0: ("ubuntu", 11), 1: ("ubuntu", 12)}
+    assert desktop.focused_by_setup == ["/tmp/b.png - gimp"]  # the window set-up opened last has the keyboard
+    desktop.shown[1]["title"] = "*/tmp/a.txt - mousepad"  # titles as they are when the agent starts
+    del desktop.shown[2]
+    assert window_titles(opened, {"ubuntu": desktop}) == {0: "*/tmp/a.txt - mousepad"}
 
 
 def test_a_subtask_without_a_gui_solution_still_stops_the_plan(tasks):
@@ -119,3 +168,16 @@ def test_md_tasks_pass_through_the_gui_end_to_end(device_images, tmp_path):
         assert result.status == "passed" and all(s.passed for s in result.subtasks), result.task_id
         transfer = next(s for s in result.subtasks if s.template.startswith("transfer-"))
         assert "carried through the drive" in transfer.evaluators[0].reason
+
+
+def test_a_program_is_started_from_a_typed_command_line_by_a_name_the_shell_finds():
+    """md-0126 through the GUI: `start "" wordpad <file>` opened nothing under Wine (WordPad is not on PATH and
+    Wine registers no App Paths); the command names the program where the device's server would find it."""
+    from jarvis_pytest.devices.platforms import spec
+
+    windows, ubuntu = spec("windows"), spec("ubuntu")
+    assert windows.start_command("wordpad", [r"C:\Users\user\a b.txt"]) == \
+        r'start "" "%ProgramFiles%\Windows NT\Accessories\wordpad.exe" "C:\Users\user\a b.txt"'
+    assert windows.start_command("notepad.exe", [r"C:\x.txt"]) == r'start "" notepad.exe "C:\x.txt"'
+    assert windows.start_command(None, [r"C:\x.txt"]) == r'start "" "C:\x.txt"'
+    assert ubuntu.start_command("gimp", ["/home/user/a b.png"]) == "setsid -f gimp '/home/user/a b.png' >/dev/null 2>&1"

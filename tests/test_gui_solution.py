@@ -426,3 +426,138 @@ def test_only_the_built_in_gui_oracle_is_told_the_gui_solution(tmp_path):
     assert brief(gui, task.formatted_subtasks, {"ubuntu": device}, {"ubuntu": "ubuntu (docker)"})
     assert not hasattr(gui, "devices") and len(gui.queue) == 1
     assert not hasattr(gui, "__dict__")  # slots: its methods cannot be swapped on an instance
+
+
+# -- bringing a subtask's window to the front in a composed task ------------------------------------------------
+def wine_desktop(active: str) -> dict:
+    """Notepad and WordPad on one Wine desktop, `active` the title of the window in front, and the taskbar whose
+    buttons the device's tree names by their windows' titles."""
+    titles = ["readme.txt - Notepad", "thank_you.rtf - Wine Wordpad"]
+    frames = [{"role": "frame", "name": t, "box": [0, 0, 1026 - 400 * i, 769 - 400 * i],
+               "states": ["enabled", "showing", "visible"] + (["active"] if t == active else [])}
+              for i, t in enumerate(titles)]
+    tray = {"role": "panel", "name": "", "class": "Shell_TrayWnd", "box": [0, 1060, 1920, 20], "children": [
+        {"role": "push button", "name": "Start", "class": "Button", "box": [0, 1060, 57, 20]},
+        *({"role": "push button", "name": t, "class": "Button", "box": [57 + 167 * i, 1060, 167, 20]}
+          for i, t in enumerate(titles))]}
+    return {"role": "desktop frame", "name": "Desktop", "box": [0, 0, 1920, 1080], "children": [*frames, tray]}
+
+
+class SwitchingDevice:
+    """A device whose tree is `trees[k]` after the agent's k-th click (the harness would have carried it out)."""
+
+    def __init__(self, *trees):
+        self.trees, self.clicks = trees, 0
+
+    def a11y_tree(self, max_nodes=2000, timeout=5.0, showing_only=True):
+        return {"tree": self.trees[min(self.clicks, len(self.trees) - 1)], "truncated": False}
+
+
+def front_agent(device, window="thank_you.rtf - *wordpad"):
+    from types import SimpleNamespace
+
+    from jarvis_pytest.agents.gui_oracle import front_step
+
+    agent = GuiOracleAgent()
+    agent.reset(TaskContext(task_id="t", instruction="", platforms=("windows",)))
+    agent.queue = [front_step(1, SimpleNamespace(platform="windows"), window)]
+    agent.views = {"windows": A11yView(device)}
+    agent.briefed = True
+    return agent
+
+
+def play(agent, device, limit=6):
+    """The agent's actions until DONE or FAIL, each click carried out on `device`."""
+    steps, history = [], []
+    for i in range(limit):
+        step = agent.act({}, history)
+        steps.append(step)
+        if step.action is None or step.action.type in ("DONE", "FAIL"):
+            break
+        device.clicks += step.action.type == "CLICK"
+        history.append(HistoryEntry(index=i, platform="windows", plan="", action=step.action))
+    return steps
+
+
+def test_a_subtask_window_behind_another_is_brought_to_the_front_by_its_taskbar_button(monkeypatch):
+    """mi-0058 through the GUI: WordPad's subtask came after Notepad's on one Wine desktop, its Alt+I went to
+    Notepad. The window is brought to the front as a person does: its taskbar button, clicked only when needed."""
+    import jarvis_pytest.agents.gui_oracle as gui_oracle
+
+    monkeypatch.setattr(gui_oracle, "FRONT_WAIT", 0.3)
+    monkeypatch.setattr(gui_oracle, "FRONT_SHOW", 0.3)
+    behind = SwitchingDevice(wine_desktop("readme.txt - Notepad"), wine_desktop("thank_you.rtf - Wine Wordpad"))
+    steps = play(front_agent(behind), behind)
+    assert [s.action.type for s in steps] == ["CLICK", "WAIT", "DONE"]
+    assert (steps[0].action.x, steps[0].action.y) == (57 + 167 + 83, 1070)  # WordPad's button, not Notepad's
+    assert "is in front" in steps[1].reasoning
+    in_front = SwitchingDevice(wine_desktop("thank_you.rtf - Wine Wordpad"))
+    steps = play(front_agent(in_front), in_front)  # a click on it would minimise it
+    assert [s.action.type for s in steps] == ["WAIT", "DONE"] and "already in front" in steps[0].reasoning
+    stuck = SwitchingDevice(wine_desktop("readme.txt - Notepad"))
+    steps = play(front_agent(stuck), stuck)
+    assert [s.action.type for s in steps[:2]] == ["CLICK", "CLICK"] and steps[2].action is None
+    assert "did not come to the front after 2 clicks" in steps[2].error
+    absent = SwitchingDevice(wine_desktop("readme.txt - Notepad"))
+    steps = play(front_agent(absent, window="minutes.txt"), absent)
+    assert steps[0].action is None and "did not show" in steps[0].error
+    steps = play(front_agent(absent, window="*Notepad"), absent)
+    assert [s.action.type for s in steps] == ["WAIT", "DONE"]
+
+
+def test_a_window_the_tree_does_not_show_is_judged_by_its_taskbar_button():
+    """GIMP 2.10 shows nothing to AT-SPI but its title on XFCE's taskbar, whose button is checked while its window
+    is the active one: it is in front, or behind, by that button."""
+    from jarvis_pytest.agents.gui_oracle import front_state
+
+    def panel(checked):
+        return {"role": "desktop frame", "name": "main", "children": [
+            {"role": "application", "name": "xfce4-panel", "children": [
+                {"role": "frame", "name": "", "box": [0, 0, 1920, 27], "children": [
+                    {"role": "toggle button", "name": "[chart] (imported)-1.0 (RGB color 8-bit) 640x480 – GIMP",
+                     "box": [110, 0, 200, 26], "states": ["checked"] if checked else []},
+                    {"role": "toggle button", "name": "notes.txt - Mousepad", "box": [310, 0, 200, 26],
+                     "states": [] if checked else ["checked"]}]}]},
+            {"role": "application", "name": "mousepad", "children": [
+                {"role": "frame", "name": "notes.txt - Mousepad", "box": [0, 27, 1920, 1053],
+                 "states": [] if checked else ["active"]}]}]}
+
+    title = "[chart] (imported)-1.0 (RGB color 8-bit) 640x480 – GIMP"
+    for marks in (True, False):
+        assert front_state(panel(True), title, "toggle button", marks)[0] == "front"
+        state, button = front_state(panel(False), title, "toggle button", marks)
+        assert state == "behind" and button["box"] == [110, 0, 200, 26]
+        assert front_state(panel(False), "notes.txt - Mousepad", "toggle button", marks)[0] == "front"
+        assert front_state(panel(True), "notes.txt - Mousepad", "toggle button", marks)[0] == "behind"
+        assert front_state(panel(True), "minutes.txt", "toggle button", marks) == ("absent", None)
+
+
+def test_where_the_taskbar_marks_the_front_window_its_mark_decides():
+    """mi-0067: Settings' wallpaper dialog is titled "Desktop", as is the desktop itself, never active; mi-0058:
+    Ristretto's modal warning has the keyboard, its window is never active. XFCE's checked button tells."""
+    from jarvis_pytest.agents.gui_oracle import front_state
+
+    tree = {"role": "desktop frame", "name": "main", "children": [
+        {"role": "application", "name": "xfce4-panel", "children": [
+            {"role": "frame", "name": "", "box": [0, 0, 1920, 27], "children": [
+                {"role": "toggle button", "name": "Desktop", "box": [110, 0, 200, 26], "states": ["checked"]}]}]},
+        {"role": "application", "name": "xfdesktop", "children": [
+            {"role": "frame", "name": "Desktop", "box": [0, 0, 1920, 1080], "states": []}]},
+        {"role": "application", "name": "xfdesktop-settings", "children": [
+            {"role": "dialog", "name": "Desktop", "box": [500, 200, 800, 600], "states": ["active"]}]}]}
+    assert front_state(tree, "Desktop", "toggle button", True)[0] == "front"
+    assert front_state(tree, "Desktop", "toggle button", False)[0] == "behind"  # the desktop's own frame
+
+
+def test_only_composed_plans_bring_windows_to_the_front(tmp_path):
+    task = task_with(tmp_path, [GOOD_STEP])
+    sub = task.formatted_subtasks[0].model_copy(update={"window": "notes.txt"})
+    assert [item.origin for item in gui_plan([sub])[0]] == ["gui_solution"]
+    assert [item.origin for item in gui_plan([sub, sub])[0]] == ["front", "gui_solution", "front", "gui_solution"]
+    plain = task.formatted_subtasks[0]  # no `window`: the title of the window its set-up opened, where known,
+    plan = gui_plan([plain, plain], windows={1: "notes.txt - Mousepad"})[0]  # else where its GUI solution starts
+    assert [item.step.target.window for item in plan if item.origin == "front"] == \
+        [plain.gui_solution[0].target.window, "notes.txt - Mousepad"]
+    desktop = plain.model_copy(update={"gui_solution": [plain.gui_solution[0].model_copy(
+        update={"target": plain.gui_solution[0].target.model_copy(update={"window": None})})]})
+    assert [item.origin for item in gui_plan([desktop, desktop])[0]] == ["gui_solution"] * 2  # a desktop control

@@ -16,20 +16,21 @@ private path, recognising it by its class object as it does the oracle): it hold
 command and write no file. A composed task's plan is its subtasks' GUI solutions in order (the built-in transfer
 has its own, `tasks/transfer.py`); what an upstream made and set-up held back (`opens`) is opened first from a
 command line opened through the GUI (`opening_steps`). It gives up on a subtask without a GUI solution, saying so,
-and on one whose template says the GUI cannot solve it on the device's backend (`gui_infeasible`). It never brings
-a subtask's window to the front: where two subtasks of one device need different windows, the later one's GUI
-solution must do it (a gap: XFCE's taskbar button would minimise a window that is already in front).
+and on one whose template says the GUI cannot solve it on the device's backend (`gui_infeasible`). In a composed
+task, a subtask's window (`window`) is brought to the front before its steps as a person does it: its button on the
+taskbar is clicked where it is not already the active window (a click on the button of the active window would
+minimise it).
 """
 
 from __future__ import annotations
 
 import re
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Callable, Iterator, Sequence
 
 from jarvis_pytest.agents.protocol import AgentStep, HistoryEntry, TaskContext
-from jarvis_pytest.devices.actions import Done, Fail, Wait
+from jarvis_pytest.devices.actions import Click, Done, Fail, Wait
 from jarvis_pytest.devices.base import Observation
 from jarvis_pytest.devices.control_http import title_matches
 from jarvis_pytest.errors import InfrastructureError
@@ -37,6 +38,9 @@ from jarvis_pytest.errors import InfrastructureError
 POLL = 0.3  # seconds between two reads of the accessibility tree while a target is awaited
 TREE_NODES = 5000  # the most nodes of one read (LibreOffice shows many cells)
 TREE_TIMEOUT = 8.0  # seconds one read may take on the device
+FRONT_SHOW = 30.0  # seconds a subtask's window gets to show before it is brought to the front
+FRONT_WAIT = 5.0  # seconds a window gets to come to the front after a click on its taskbar button
+FRONT_CLICKS = 2  # clicks on a window's taskbar button before giving up on bringing it to the front
 
 
 def backend_name(label: str) -> str:
@@ -174,24 +178,15 @@ class Found:
     truncated: bool
 
 
-def await_target(view: A11yView, target: Any, timeout: float, *, gone: bool = False, settled: bool = False,
-                 screen: tuple[int, int] | None = None, clock: Callable[[], float] = time.monotonic,
-                 sleep: Callable[[float], None] = time.sleep) -> Found:
-    """Read `view`'s tree until `target` shows on `screen` (with `gone`: until it no longer shows), at most
-    `timeout` seconds (one read at least). `Found.node` is the node found; with `gone` it is None once the target
-    went. With `settled` (a target about to be clicked) it shows once two reads in a row give it the same box, as a
-    person waits for a dialog or bubble to stop moving before clicking into it; when the timeout passes while it
-    still moves, the last box is taken. A read the device fails (AT-SPI "did not receive a reply" while a program
-    starts, on a loaded machine) is read again within the timeout, twice at least; the device's error is raised
-    only when no read at all succeeded."""
+def poll_tree(view: A11yView, judge: Callable[[dict], tuple[bool, Any]], timeout: float, *,
+              clock: Callable[[], float] = time.monotonic,
+              sleep: Callable[[float], None] = time.sleep) -> tuple[bool, Any, int, bool, float]:
+    """Read `view`'s tree until `judge(tree)` answers (True, value), at most `timeout` seconds (one read at least):
+    (done, the last value judged, reads, whether a read was cut short, seconds). A read the device fails (AT-SPI
+    "did not receive a reply" while a program starts, on a loaded machine) is read again within the timeout, twice
+    at least; the device's error is raised only when no read at all succeeded."""
     start = clock()
-    reads, truncated, failed = 0, False, 0
-    node, title, last_box = None, None, None
-
-    def timed_out() -> Found:  # gone: it still shows; settled: it shows, still moving; else: it did not show
-        keep = gone or (settled and node is not None)
-        return Found(node if keep else None, title if keep else None, round(clock() - start, 3), reads, truncated)
-
+    reads, truncated, failed, value = 0, False, 0, None
     while True:
         try:
             answer = view.tree()
@@ -200,19 +195,63 @@ def await_target(view: A11yView, target: Any, timeout: float, *, gone: bool = Fa
             if clock() - start >= timeout and (reads or failed >= 2):
                 if not reads:
                     raise
-                return timed_out()
+                return False, value, reads, truncated, round(clock() - start, 3)
             sleep(POLL)
             continue
         reads += 1
         truncated = truncated or bool(answer.get("truncated"))
-        node, title = find_target(answer.get("tree") or {}, target, screen)
-        moving = settled and node is not None and node.get("box") != last_box
-        last_box = None if node is None else node.get("box")
-        if (node is None) == gone and not moving:
-            return Found(node, title, round(clock() - start, 3), reads, truncated)
-        if clock() - start >= timeout:
-            return timed_out()
+        done, value = judge(answer.get("tree") or {})
+        if done or clock() - start >= timeout:
+            return done, value, reads, truncated, round(clock() - start, 3)
         sleep(POLL)
+
+
+def await_target(view: A11yView, target: Any, timeout: float, *, gone: bool = False, settled: bool = False,
+                 state: str | None = None, screen: tuple[int, int] | None = None,
+                 clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep) -> Found:
+    """Read `view`'s tree until `target` shows on `screen` (with `gone`: until it no longer shows), at most
+    `timeout` seconds (`poll_tree`). `Found.node` is the node found; with `gone` it is None once the target went.
+    With `settled` (a target about to be clicked) it shows once two reads in a row give it the same box, as a
+    person waits for a dialog or bubble to stop moving before clicking into it; when the timeout passes while it
+    still moves, the last box is taken. With `state` (e.g. "active") the target counts only once it has it."""
+    last: list[Any] = [None]
+
+    def judge(tree: dict) -> tuple[bool, tuple[dict | None, str | None]]:
+        node, title = find_target(tree, target, screen)
+        if state is not None and node is not None and state not in node.get("states", ()):
+            node, title = None, None
+        moving = settled and node is not None and node.get("box") != last[0]
+        last[0] = None if node is None else node.get("box")
+        return (node is None) == gone and not moving, (node, title)
+
+    done, value, reads, truncated, seconds = poll_tree(view, judge, timeout, clock=clock, sleep=sleep)
+    node, title = value or (None, None)
+    if not done and not (gone or (settled and node is not None)):  # it did not show
+        node, title = None, None
+    return Found(node, title, seconds, reads, truncated)
+
+
+def front_state(tree: dict, window: str, button_role: str | None, marks_front: bool = False,
+                screen: tuple[int, int] | None = None) -> tuple[str, dict | None]:
+    """Where the window whose title shows `window` stands, and its taskbar button (a `button_role` control named by
+    its title; None where there is none): "front", "behind", or "absent" (neither the window nor its button shows).
+    Where the taskbar marks the window in front (`marks_front`: XFCE checks its button) that mark decides, as a
+    person reads it: it holds for a window whose modal dialog has the keyboard (Ristretto's warning), for one the
+    tree does not show (GIMP shows nothing to AT-SPI) and among windows of one title (Settings' "Desktop" and the
+    desktop itself); elsewhere the window must be the active one."""
+    from jarvis_pytest.tasks.model import GuiTarget
+
+    node, _ = find_target(tree, GuiTarget(window=window), screen)
+    button = None
+    if button_role is not None:
+        name = window if "*" in window else f"*{window}*"
+        button, _ = find_target(tree, GuiTarget.model_validate({"control": {"role": button_role, "name": name}}),
+                                screen)
+    if button is not None and (marks_front or node is None):
+        return ("front" if "checked" in button.get("states", ()) else "behind"), button
+    if node is not None:
+        return ("front" if "active" in node.get("states", ()) else "behind"), button
+    return "absent", None
 
 
 def centre(box: Sequence[int], screen: tuple[int, int] | None = None) -> tuple[int, int]:
@@ -224,18 +263,26 @@ def centre(box: Sequence[int], screen: tuple[int, int] | None = None) -> tuple[i
 @dataclass(frozen=True)
 class GuiItem:
     """One step of a GUI plan: subtask `subtask`'s GUI step `index` (`step`, a GuiStep) on `platform`; `origin`
-    says where the step comes from: the subtask's `gui_solution`, or `opens` (opening what an upstream made)."""
+    says where the step comes from: the subtask's `gui_solution`, `opens` (opening what an upstream made) or
+    `front` (bringing the subtask's window to the front: `front_step`)."""
 
     subtask: int
     platform: str
     index: int
     step: Any
     origin: str = "gui_solution"
+    tries: int = 0  # `front`: taskbar clicks made so far
+
+
+OPENED_SHOW = 60.0  # seconds a program opened through the GUI gets to show its window (GIMP under load)
+OPENED_SETTLE = 2.0  # seconds it then gets before the subtask's first step (a window shows before it takes keys)
 
 
 def opening_steps(s: int, sub: Any) -> tuple[list[GuiItem], str | None]:
     """The GUI steps that open what subtask `s` works on where set-up held it back (`sub.opens`): the same
-    program started from a command line opened through the GUI, then its window awaited; and why there are none."""
+    program started from a command line opened through the GUI, then its window awaited as a person waits for
+    it — the subtask's `window`, or else the taskbar button that shows the opened file's name (GIMP shows nothing
+    of itself to AT-SPI but its title) — and a moment to settle; and why there are none."""
     from jarvis_pytest.devices.platforms import spec
     from jarvis_pytest.tasks.model import GuiStep
 
@@ -248,17 +295,57 @@ def opening_steps(s: int, sub: Any) -> tuple[list[GuiItem], str | None]:
             return [], f"subtask {s} ({sub.template}) opens a file an upstream subtask made, and the {facts.label} " \
                        "device has no way known to do that through the GUI"
         steps += shell
-    if steps and sub.window:
-        steps.append({"type": "WAIT_FOR", "target": {"window": sub.window}, "timeout": 30, "platform": sub.platform,
-                      "note": "the subtask's window shows what it opened"})
+        shows = opened_window_target(sub, facts, args)
+        if shows is not None:
+            steps.append({"type": "WAIT_FOR", "target": shows, "timeout": OPENED_SHOW, "platform": facts.name,
+                          "note": "the window of what was opened shows"})
+        steps.append({"type": "WAIT", "seconds": OPENED_SETTLE, "platform": facts.name})
     return [GuiItem(s, step.get("platform") or sub.platform, i, GuiStep.model_validate(step), "opens")
             for i, step in enumerate(steps)], None
 
 
-def gui_plan(subtasks: Sequence[Any], backends: dict[str, str] | None = None) -> tuple[list[GuiItem], str | None]:
-    """The GUI plan of a task (its subtasks in execution order): every subtask's GUI steps in order, and why there
-    is none (a subtask without a GUI solution, one whose file set-up held back for the solver to open, or one the
-    template says the GUI cannot solve on the device's backend, from `backends`: platform → label)."""
+def opened_window_target(sub: Any, facts: Any, args: Sequence[str]) -> dict | None:
+    """What shows once a program opened `args` (a GuiTarget's fields): the subtask's `window`, else a taskbar
+    button whose title shows the name of the file opened (without its extension: GIMP shows "[name]"); None where
+    neither is known."""
+    if sub.window:
+        return {"window": sub.window}
+    import ntpath
+    import posixpath
+
+    files = [a for a in args if a and not a.startswith("-")]
+    if not files or facts.taskbar_button_role is None:
+        return None
+    base = (ntpath if facts.path_style == "windows" else posixpath).basename(files[-1])
+    stem = base.rsplit(".", 1)[0] if "." in base.lstrip(".") else base
+    return {"control": {"role": facts.taskbar_button_role, "name": f"*{stem}*"}} if stem else None
+
+
+def front_step(s: int, sub: Any, window: str) -> GuiItem:
+    """The step that brings subtask `s`'s window (its title shows `window`) to the front before its GUI solution,
+    where other subtasks' programs are open on the same desktop: carried out by `GuiOracleAgent` as a person does it (the
+    window's button on the taskbar, clicked only when the window is not already in front)."""
+    from jarvis_pytest.tasks.model import GuiStep
+
+    step = GuiStep.model_validate({"type": "WAIT_FOR", "target": {"window": window}, "timeout": FRONT_SHOW,
+                                   "note": "the subtask's window, brought to the front"})
+    return GuiItem(s, sub.platform, 0, step, "front")
+
+
+def first_window(steps: Sequence[Any]) -> str | None:
+    """The window a GUI solution starts in: the `window` of its first step that names a target, where that target
+    is in a window (None where the first target is a control of the desktop, such as the Start button)."""
+    first = next((step.target for step in steps if step.target is not None), None)
+    return first.window if first is not None else None
+
+
+def gui_plan(subtasks: Sequence[Any], backends: dict[str, str] | None = None,
+             windows: dict[int, str] | None = None) -> tuple[list[GuiItem], str | None]:
+    """The GUI plan of a task (its subtasks in execution order): every subtask's GUI steps in order, in a composed
+    task after bringing the subtask's window to the front (`front_step`: the template's `window`, else the title of
+    the window its set-up opened, from `windows`: subtask → title, else the window its GUI solution starts in), and
+    why there is none (a subtask without a GUI solution, one whose file set-up held back for the solver to open, or
+    one the template says the GUI cannot solve on the device's backend, from `backends`: platform → label)."""
     plan: list[GuiItem] = []
     for s, sub in enumerate(subtasks):
         backend = backend_name((backends or {}).get(sub.platform, ""))
@@ -271,6 +358,9 @@ def gui_plan(subtasks: Sequence[Any], backends: dict[str, str] | None = None) ->
         if why is not None:
             return [], why
         plan += opening
+        window = sub.window or (windows or {}).get(s) or first_window(sub.gui_solution)
+        if len(subtasks) > 1 and window:
+            plan.append(front_step(s, sub, window))
         plan += [GuiItem(s, step.platform or sub.platform, i, step) for i, step in enumerate(sub.gui_solution)]
     return plan, None
 
@@ -319,6 +409,8 @@ class GuiOracleAgent:
         what = describe_target(step.target)
         shown = observations.get(platform)
         screen = (shown.width, shown.height) if shown is not None and shown.width and shown.height else None
+        if item.origin == "front":
+            return self._front(item, where, screen)
         found = await_target(self.views[platform], step.target, step.timeout, gone=step.gone, screen=screen,
                              settled=step.type != "WAIT_FOR")
         seen = {"gui_step": item.index, "origin": item.origin,
@@ -340,6 +432,52 @@ class GuiOracleAgent:
         return AgentStep(platform=platform, action=step.action(x, y), extra=seen,
                          reasoning=f"{where}: {step.type} at the centre of {what} ({x}, {y}){note}")
 
+    def _front(self, item: GuiItem, where: str, screen: tuple[int, int] | None) -> AgentStep:
+        """Bring the subtask's window to the front as a person does (`front_state`): nothing to do where it is
+        already in front, else a click on its taskbar button, then a look whether it came (at most FRONT_CLICKS
+        clicks: a click on the button of a window the taskbar thinks in front minimises it, the next one restores
+        it)."""
+        from jarvis_pytest.devices.platforms import spec
+
+        platform, step, view = item.platform, item.step, self.views[item.platform]
+        facts = spec(platform)
+        window, role = step.target.window, facts.taskbar_button_role
+        seen: dict[str, Any] = {"origin": "front", "window": window, "clicks": item.tries}
+        wanted = ("front",) if item.tries else ("front", "behind")  # after a click: it comes; first: it shows
+
+        def judge(tree: dict) -> tuple[bool, tuple[str, dict | None]]:
+            where_now = front_state(tree, window, role, facts.taskbar_marks_front, screen)
+            return where_now[0] in wanted, where_now
+
+        _, value, reads, _, seconds = poll_tree(view, judge, FRONT_WAIT if item.tries else step.timeout)
+        state, button = value or ("absent", None)
+        seen.update(state=state, waited=seconds, reads=reads)
+        if state == "front":
+            return AgentStep(platform=platform, action=Wait(seconds=0), extra=seen,
+                             reasoning=f"{where}: the window {window!r} is {'in' if item.tries else 'already in'} "
+                                       "front")
+        if state == "absent" and not item.tries:
+            error = f"{where}: the window {window!r} did not show within {step.timeout:g} s ({reads} reads)"
+        elif role is None:
+            return AgentStep(platform=platform, action=Wait(seconds=0), extra=seen,
+                             reasoning=f"{where}: the {platform} device has no taskbar known: the window {window!r} "
+                                       "is left where it is")
+        elif item.tries >= FRONT_CLICKS:
+            error = (f"{where}: the window {window!r} did not come to the front after {item.tries} clicks on its "
+                     "taskbar button")
+        elif button is None:
+            error = f"{where}: the window {window!r} is not in front and has no taskbar button ({role}) on screen"
+        else:
+            x, y = centre(button["box"], screen)
+            self.queue.insert(0, replace(item, tries=item.tries + 1))
+            self.pending = item
+            seen["resolved"] = {k: button[k] for k in ("role", "name", "box") if k in button}
+            return AgentStep(platform=platform, action=Click(x=x, y=y), extra=seen,
+                             reasoning=f"{where}: CLICK the taskbar button of the window {window!r} ({x}, {y}) to "
+                                       "bring it to the front")
+        self._fail(platform, f"gui-oracle: {error}")
+        return AgentStep(platform=platform, action=None, error=error, reasoning=error, extra=seen)
+
     def _missing(self, platform: str, where: str, what: str, step: Any, found: Found,
                  seen: dict[str, Any]) -> AgentStep:
         """The step's error (recorded by the harness), and a FAIL for the next step."""
@@ -359,10 +497,10 @@ class GuiOracleAgent:
 
 
 def brief_gui(agent: GuiOracleAgent, subtasks: Sequence[Any], devices: dict[str, Any],
-              backends: dict[str, str] | None) -> None:
+              backends: dict[str, str] | None, windows: dict[int, str] | None = None) -> None:
     """Hand `agent` (exactly a GuiOracleAgent: `oracle.brief` checked) the task's GUI plan and the devices'
     accessibility views."""
-    plan, why = gui_plan(subtasks, backends)
+    plan, why = gui_plan(subtasks, backends, windows)
     agent.queue = plan
     agent.views = {platform: A11yView(device) for platform, device in devices.items()}
     agent.briefed = True if why is None else why

@@ -280,12 +280,13 @@ class OracleAgent:
 
 
 def brief(agent: Any, subtasks: Sequence[Any], devices: dict[str, Device],
-          backends: dict[str, str] | None = None) -> bool:
+          backends: dict[str, str] | None = None, windows: dict[int, str] | None = None) -> bool:
     """Hand the task's solution (its formatted subtasks, in execution order) and its devices to `agent` if it is
     the built-in oracle: an instance of exactly `OracleAgent`, this module's class object (no name, attribute,
     subclass or copy of it qualifies). The built-in GUI oracle (exactly `gui_oracle.GuiOracleAgent`) is handed the
     subtasks' GUI solutions and a view of the devices' accessibility trees instead, never the devices (`backends`:
-    platform → the label of the backend that runs it, for its `gui_infeasible`). The browser player's agent
+    platform → the label of the backend that runs it, for its `gui_infeasible`; `windows`: subtask → the title of
+    the window its set-up opened, for subtasks whose template names none, to bring it to the front). The browser player's agent
     (exactly `player.agent.HumanAgent`) is handed a view of each device's screen, for its page to show it live:
     screenshots only, nothing of the solution. Call it after `agent.reset`. Whether `agent` was briefed; any other
     agent is handed nothing."""
@@ -293,7 +294,7 @@ def brief(agent: Any, subtasks: Sequence[Any], devices: dict[str, Device],
     from jarvis_pytest.player.agent import HumanAgent, brief_human
 
     if type(agent) is GuiOracleAgent:
-        brief_gui(agent, subtasks, devices, backends)
+        brief_gui(agent, subtasks, devices, backends, windows)
         return True
     if type(agent) is HumanAgent:
         brief_human(agent, devices)

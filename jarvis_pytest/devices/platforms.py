@@ -53,6 +53,12 @@ class PlatformSpec:
     # such recipe is known for the platform)
     gui_shell_open: tuple[dict, ...] | None = None
     gui_shell_title: str | None = None
+    # the role of a window's button on the desktop's taskbar, named by the window's title: the GUI way to bring a
+    # window to the front (a click on the button of the window in front minimises it); None: no taskbar known.
+    # `taskbar_marks_front`: the button of the window in front is checked (XFCE's tasklist; Wine's is drawn pushed,
+    # with no state to read)
+    taskbar_button_role: str | None = None
+    taskbar_marks_front: bool = False
 
     @property
     def sep(self) -> str:
@@ -125,7 +131,11 @@ class PlatformSpec:
         """A command line that starts `app` with `args` (without `app`: opens the file `args[0]` with its default
         program) and returns at once, the program left running after the command line closes."""
         if self.shell == "cmd":
-            return " ".join(['start ""', *([app] if app else []), *(f'"{a}"' for a in args)])
+            from jarvis_pytest.devices.windows.server.programs import KNOWN_PROGRAMS
+
+            program = KNOWN_PROGRAMS.get((app or "").lower().removesuffix(".exe"))  # not on PATH: `start` misses it
+            return " ".join(['start ""', *([f'"{program}"' if program else app] if app else []),
+                             *(f'"{a}"' for a in args)])
         words = [app, *args] if app else ["exo-open", *args]
         return f"setsid -f {shlex.join(words)} >/dev/null 2>&1"
 
@@ -154,9 +164,11 @@ PLATFORMS: dict[str, PlatformSpec] = {
         gui_shell_open=({"type": "CLICK", "x": 28, "y": 1070, "note": "the taskbar's Start button"},
                         {"type": "CLICK", "x": 40, "y": 1050, "note": "Start > Run..."},
                         {"type": "WAIT_FOR", "target": {"window": "Run", "control": {"class": "Edit"}}},
+                        {"type": "HOTKEY", "keys": ["end"], "note": "the box keeps the last command run"},
+                        {"type": "HOTKEY", "keys": ["shift", "home"], "note": "all of it selected: typing replaces it"},
                         {"type": "TYPING", "text": "cmd.exe\n"},
                         {"type": "WAIT_FOR", "target": {"window": "\\cmd.exe"}, "timeout": 30}),
-        gui_shell_title=f"title {SHELL_TITLE}",
+        gui_shell_title=f"title {SHELL_TITLE}", taskbar_button_role="push button",
         # the device's Python writes the date to a file that cmd's own `type` prints: under Wine the output of a
         # program the control server's cmd starts never reaches the server, that of cmd's built-ins does
         today_command=('"C:\\jarvis\\python\\pythonw.exe" -I -c "import datetime,os; open(os.path.join(os.environ['
@@ -174,7 +186,8 @@ PLATFORMS: dict[str, PlatformSpec] = {
                         {"type": "WAIT_FOR", "timeout": 30, "note": "its shell's prompt",
                          "target": {"window": "Terminal - ", "control": {"role": "terminal", "text": "*$"}}},
                         {"type": "CLICK", "target": {"window": "Terminal - ", "control": {"role": "terminal"}}}),
-        gui_shell_title=f"PS1='$ '; printf '\\033]0;{SHELL_TITLE}\\007'"),
+        gui_shell_title=f"PS1='$ '; printf '\\033]0;{SHELL_TITLE}\\007'", taskbar_button_role="toggle button",
+        taskbar_marks_front=True),
 }
 PLATFORM_NAMES: tuple[str, ...] = tuple(PLATFORMS)
 

@@ -68,14 +68,14 @@ def _gui_run(task: Task, platforms: tuple[str, ...], environments: Any, limits: 
     env = environments.acquire(platforms)
     recorder = FolderRecorder(folder)
     try:
-        run_setup(subtasks, env.devices)
+        opened = run_setup(subtasks, env.devices)
         baselines = capture_baselines(subtasks, env.devices)
         agent = GuiOracleAgent()
         failed_reset = begin(agent, TaskContext(task_id=task.id, instruction=task.instruction, platforms=platforms),
                              limits)
         if failed_reset is not None:  # our own agent: a bug, said as the check's failure
             return "failed", failed_reset, 0, []
-        brief(agent, subtasks, env.devices, dict(getattr(env, "backends", {})))
+        brief(agent, subtasks, env.devices, dict(getattr(env, "backends", {})), window_titles(opened, env.devices))
         planned = sum(len(s.gui_solution or []) for s in subtasks)
         outcome = run_loop(agent, env.devices, {}, recorder,
                            LoopLimits(max_steps=max(limits.max_steps, planned + 5), step_timeout=limits.step_timeout,

@@ -21,7 +21,7 @@ from jarvis_pytest.plugin import idle
 from jarvis_pytest.plugin.idle import idle_observation
 from jarvis_pytest.plugin.blame import AGENT_ERROR
 from jarvis_pytest.plugin.loop import LoopLimits, LoopOutcome, begin, run_loop
-from jarvis_pytest.plugin.setup_steps import run_setup
+from jarvis_pytest.plugin.setup_steps import run_setup, window_titles
 from jarvis_pytest.report.failure_modes import classify
 from jarvis_pytest.results.model import StepRecord, TaskResult
 from jarvis_pytest.results.writer import TaskRecorder
@@ -108,7 +108,7 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
         result.worker = getattr(env, "worker", "")
         booted_ahead = wall_start - getattr(env, "boot_started", wall_start)  # > 0: pre-warmed
         t_boot = time.monotonic()
-        run_setup(subtasks, env.devices)
+        opened = run_setup(subtasks, env.devices)
         baselines = capture_baselines(subtasks, env.devices)
         drive = DriveWatch(env, task)
         if ctx.qc:
@@ -121,7 +121,8 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
                     "flavour": getattr(env.transfer, "flavour", "copyparty")}
         failed_reset = begin(ctx.agent, TaskContext(task_id=task.id, instruction=task.instruction,
                                                     platforms=platforms, transfer=transfer), ctx.limits)
-        brief_oracle(ctx.agent, subtasks, env.devices, result.backends)  # to the built-in oracles only
+        brief_oracle(ctx.agent, subtasks, env.devices, result.backends,  # to the built-in oracles only
+                     window_titles(opened, env.devices) if type(ctx.agent) is GuiOracleAgent else None)
         limits = ctx.limits
         if type(ctx.agent) is GuiOracleAgent:  # a proof: its whole plan gets steps, as in `jarvis qc`'s GUI check
             limits = replace(limits, max_steps=max(limits.max_steps, len(ctx.agent.queue) + 5))

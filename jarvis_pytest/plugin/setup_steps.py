@@ -61,11 +61,57 @@ def run_step(device: Device, step: SetupStep) -> None:
         raise ConfigError(f"unknown setup step {step!r}", field="config.type", fix="see `jarvis schema`")
 
 
-def run_setup(subtasks: Sequence[Subtask], devices: dict[str, Device]) -> None:
-    """Apply every subtask's setup steps in order, each on its step's (or subtask's) platform."""
-    for sub in subtasks:
+def _window_ids(device: Device) -> dict[int, dict] | None:
+    """The device's top-level windows by id, where it lists them (desktops: `windows()`); None elsewhere."""
+    listing = getattr(device, "windows", None)
+    if listing is None:
+        return None
+    return {w["id"]: w for w in listing() if w.get("id") is not None}
+
+
+def run_setup(subtasks: Sequence[Subtask], devices: dict[str, Device]) -> dict[int, tuple[str, int]]:
+    """Apply every subtask's setup steps in order, each on its step's (or subtask's) platform. Returns the window
+    each subtask's set-up opened (a `launch` or `open` step), where the device lists windows: subtask index →
+    (platform, window id) — the newest new window, the focused one first (`window_titles` reads their titles)."""
+    opened: dict[int, tuple[str, int]] = {}
+    for s, sub in enumerate(subtasks):
         for step in sub.config:
             platform = step.platform or sub.platform
             if platform not in devices:
                 raise InfrastructureError(f"setup of {sub.template} needs the {platform} device")
+            before = _window_ids(devices[platform]) if isinstance(step, (Launch, Open)) else None
             run_step(devices[platform], step)
+            if before is not None:
+                new = [w for i, w in (_window_ids(devices[platform]) or {}).items() if i not in before]
+                if new:
+                    window = max(new, key=lambda w: (bool(w.get("focused")), w["id"]))
+                    opened[s] = (platform, window["id"])
+                    _to_front(devices[platform], window)
+    return opened
+
+
+def _to_front(device: Device, window: dict) -> None:
+    """The window a set-up step opened is the one in front, with the keyboard, whatever the timing: XFCE's focus
+    stealing prevention can leave the keyboard with an earlier window that the new one covers (sw-0012: Calc on
+    top, the keys going to Chromium under it), a state that differs from run to run and confuses any agent."""
+    focus = getattr(device, "focus_window", None)
+    if focus is None or window.get("focused"):
+        return
+    if getattr(device, "names_windows", False):
+        focus(id=window["id"], timeout=2.0)
+    elif window.get("title"):
+        focus(window["title"], timeout=2.0)
+
+
+def window_titles(opened: dict[int, tuple[str, int]], devices: dict[str, Device]) -> dict[int, str]:
+    """The titles the windows set-up opened (`run_setup`'s answer) show now, by subtask; a window that went, or
+    has no title, is left out."""
+    now: dict[str, dict[int, dict]] = {}
+    titles: dict[int, str] = {}
+    for s, (platform, wid) in opened.items():
+        if platform not in now:
+            now[platform] = _window_ids(devices[platform]) or {}
+        title = (now[platform].get(wid) or {}).get("title")
+        if title:
+            titles[s] = title
+    return titles

@@ -29,6 +29,7 @@ ROLES = {
     "msctls_updown32": "spin button", "SysLink": "link", "Shell_TrayWnd": "panel", "SysPager": "panel",
     "tooltips_class32": "tool tip",
 }
+TASKBAR_CLASS = "Shell_TrayWnd"  # Wine's (and Windows') taskbar
 ACCESS_KEY_ROLES = {"push button", "check box", "radio button", "label", "panel"}
 TEXT_CLASSES = {"Edit", "RICHEDIT50W", "RichEdit20W", "RichEdit20A", "RICHEDIT", "ComboBox", "ComboBoxEx32"}
 ES_MULTILINE, ES_PASSWORD, ES_READONLY = 0x4, 0x20, 0x800
@@ -149,6 +150,15 @@ def menu_items(hmenu: int, hwnd: int | None, limit: int) -> list[dict]:
     return out
 
 
+def taskbar_button_name(button: int) -> str:
+    """What a button of Wine's taskbar shows: it draws the title of the window whose handle is its control id
+    (programs/explorer/systray.c, `add_taskbar_button`), or "Start" (id 0); its own window text is empty."""
+    target = w.GetDlgCtrlID(button) & 0xFFFFFFFF
+    if not target:
+        return "Start"
+    return w.window_text(target, CALL_TIMEOUT_MS) if w.IsWindow(target) else ""
+
+
 def tree(max_nodes: int = 2000, max_depth: int = 30, timeout: float = 5.0, showing_only: bool = True) -> dict:
     """The desktop's window tree as nested dicts; `truncated` says whether a limit cut it short."""
     from .screen import virtual_screen
@@ -172,6 +182,8 @@ def tree(max_nodes: int = 2000, max_depth: int = 30, timeout: float = 5.0, showi
         else:
             role = "panel"
         raw = w.window_text(hwnd, CALL_TIMEOUT_MS)
+        if cls == "Button" and not raw and w.class_name(w.GetParent(hwnd) or 0) == TASKBAR_CLASS:
+            raw = taskbar_button_name(hwnd)
         name, text = raw, None
         if cls in TEXT_CLASSES:
             name, text = "", ("" if style & ES_PASSWORD else raw)

@@ -13,13 +13,9 @@ import threading
 import time
 
 from . import win32 as w
+from .programs import KNOWN_PROGRAMS
 
 USERS_ALLOWED = {"", "user", "root", "admin", "administrator", "system"}  # all run as the server's own account
-KNOWN_PROGRAMS = {  # programs Windows (and Wine) has but not on PATH, found through App Paths on real Windows
-    "wordpad": r"%ProgramFiles%\Windows NT\Accessories\wordpad.exe",
-    "iexplore": r"%ProgramFiles%\Internet Explorer\iexplore.exe",
-    "msedge": r"%ProgramFiles(x86)%\Microsoft\Edge\Application\msedge.exe",
-}
 
 
 class PathError(ValueError):
