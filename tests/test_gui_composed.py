@@ -90,6 +90,8 @@ def test_what_set_up_held_back_is_opened_from_a_command_line_first(tasks):
     # then the opened window awaited, as a person waits for it: Thunar's taskbar button shows the folder's name
     shows = [i.step.target.control for i in opening if i.step.type == "WAIT_FOR" and i.step.target.control]
     assert [(c.role, c.name) for c in shows][-1] == ("toggle button", "*transfer*"), shows  # /tmp/transfer
+    # the transfer opens its own command line: no window of its own to bring to the front first
+    assert [i.subtask for i in plan if i.origin == "front"] == [0, 2]
     assert opening[-1].step.type == "WAIT"
 
 

@@ -333,10 +333,11 @@ def front_step(s: int, sub: Any, window: str) -> GuiItem:
 
 
 def first_window(steps: Sequence[Any]) -> str | None:
-    """The window a GUI solution starts in: the `window` of its first step that names a target, where that target
-    is in a window (None where the first target is a control of the desktop, such as the Start button)."""
-    first = next((step.target for step in steps if step.target is not None), None)
-    return first.window if first is not None else None
+    """The window a GUI solution starts in: the `window` its first step names, waits aside (None where that step
+    names none: it presses keys, or clicks a control of the desktop such as the Start button, and the windows it
+    works in are ones it opens itself)."""
+    first = next((step for step in steps if step.type != "WAIT"), None)
+    return first.target.window if first is not None and first.target is not None else None
 
 
 def gui_plan(subtasks: Sequence[Any], backends: dict[str, str] | None = None,
