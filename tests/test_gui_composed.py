@@ -113,7 +113,12 @@ def test_the_windows_set_up_opened_are_named_by_their_titles_when_the_agent_star
             steals = app != "gimp"  # GIMP's window shows under the keyboard's window (XFCE's focus stealing guard)
             for w in self.shown:
                 w["focused"] = w["focused"] and not steals
-            self.shown.append({"id": 10 + len(self.shown), "title": f"{args[0]} - {app}", "focused": steals})
+            self.shown.append({"id": 10 + len(self.shown), "title": f"{args[0]} - {app}", "focused": steals,
+                               "box": [0, 27, 1920, 1053]})
+            if app == "ristretto":  # its thumbnailer warning, in front of it, has the keyboard
+                self.shown[-1]["focused"] = False
+                self.shown.append({"id": 10 + len(self.shown), "title": "Warning", "focused": True,
+                                   "box": [763, 461, 404, 242]})
             return True
 
         def focus_window(self, title=None, *, id=None, timeout=5.0):
@@ -138,6 +143,8 @@ def test_the_windows_set_up_opened_are_named_by_their_titles_when_the_agent_star
     desktop.shown[1]["title"] = "*/tmp/a.txt - mousepad"  # titles as they are when the agent starts
     del desktop.shown[2]
     assert window_titles(opened, {"ubuntu": desktop}) == {0: "*/tmp/a.txt - mousepad"}
+    viewer = Desktop()  # of the windows a set-up step opened, the application's, not the dialog in front of it
+    assert run_setup([sub("ristretto", "/tmp/c.png")], {"ubuntu": viewer}) == {0: ("ubuntu", 11)}
 
 
 def test_a_subtask_without_a_gui_solution_still_stops_the_plan(tasks):

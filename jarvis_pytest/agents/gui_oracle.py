@@ -254,6 +254,20 @@ def front_state(tree: dict, window: str, button_role: str | None, marks_front: b
     return "absent", None
 
 
+def front_among(tree: dict, windows: Sequence[str], button_role: str | None, marks_front: bool = False,
+                screen: tuple[int, int] | None = None) -> tuple[str, dict | None, str]:
+    """`front_state` of the window that shows one of `windows`: "front" where one is in front; else "behind", with
+    the taskbar button of the first one that has a button; else "absent". The title it concerns comes last."""
+    found = [(w, *front_state(tree, w, button_role, marks_front, screen)) for w in windows]
+    for w, state, button in found:
+        if state == "front":
+            return state, button, w
+    behind = [f for f in found if f[1] == "behind"]
+    for w, state, button in sorted(behind, key=lambda f: f[2] is None):
+        return state, button, w
+    return "absent", None, windows[0]
+
+
 def centre(box: Sequence[int], screen: tuple[int, int] | None = None) -> tuple[int, int]:
     """The centre of a box [x, y, w, h]; with `screen`, of its part on the screen."""
     box = visible_box(box, screen) or box
@@ -272,6 +286,7 @@ class GuiItem:
     step: Any
     origin: str = "gui_solution"
     tries: int = 0  # `front`: taskbar clicks made so far
+    windows: tuple[str, ...] = ()  # `front`: the titles the subtask's window may show (`front_step`)
 
 
 OPENED_SHOW = 60.0  # seconds a program opened through the GUI gets to show its window (GIMP under load)
@@ -321,15 +336,17 @@ def opened_window_target(sub: Any, facts: Any, args: Sequence[str]) -> dict | No
     return {"control": {"role": facts.taskbar_button_role, "name": f"*{stem}*"}} if stem else None
 
 
-def front_step(s: int, sub: Any, window: str) -> GuiItem:
-    """The step that brings subtask `s`'s window (its title shows `window`) to the front before its GUI solution,
-    where other subtasks' programs are open on the same desktop: carried out by `GuiOracleAgent` as a person does it (the
+def front_step(s: int, sub: Any, windows: Sequence[str]) -> GuiItem:
+    """The step that brings subtask `s`'s window to the front before its GUI solution, where other subtasks'
+    programs are open on the same desktop: its title shows one of `windows` (a title set-up saw may have changed
+    since — LibreOffice names its window only once the file is loaded — and the window a GUI solution starts in may
+    be a dialog in front of it, Ristretto's warning). Carried out by `GuiOracleAgent` as a person does it (the
     window's button on the taskbar, clicked only when the window is not already in front)."""
     from jarvis_pytest.tasks.model import GuiStep
 
-    step = GuiStep.model_validate({"type": "WAIT_FOR", "target": {"window": window}, "timeout": FRONT_SHOW,
+    step = GuiStep.model_validate({"type": "WAIT_FOR", "target": {"window": windows[0]}, "timeout": FRONT_SHOW,
                                    "note": "the subtask's window, brought to the front"})
-    return GuiItem(s, sub.platform, 0, step, "front")
+    return GuiItem(s, sub.platform, 0, step, "front", windows=tuple(windows))
 
 
 def first_window(steps: Sequence[Any]) -> str | None:
@@ -344,7 +361,7 @@ def gui_plan(subtasks: Sequence[Any], backends: dict[str, str] | None = None,
              windows: dict[int, str] | None = None) -> tuple[list[GuiItem], str | None]:
     """The GUI plan of a task (its subtasks in execution order): every subtask's GUI steps in order, in a composed
     task after bringing the subtask's window to the front (`front_step`: the template's `window`, else the title of
-    the window its set-up opened, from `windows`: subtask → title, else the window its GUI solution starts in), and
+    the window its set-up opened, from `windows`: subtask → title, or the window its GUI solution starts in), and
     why there is none (a subtask without a GUI solution, one whose file set-up held back for the solver to open, or
     one the template says the GUI cannot solve on the device's backend, from `backends`: platform → label)."""
     plan: list[GuiItem] = []
@@ -359,9 +376,10 @@ def gui_plan(subtasks: Sequence[Any], backends: dict[str, str] | None = None,
         if why is not None:
             return [], why
         plan += opening
-        window = sub.window or (windows or {}).get(s) or first_window(sub.gui_solution)
-        if len(subtasks) > 1 and window:
-            plan.append(front_step(s, sub, window))
+        candidates = [sub.window] if sub.window else \
+            list(dict.fromkeys(w for w in ((windows or {}).get(s), first_window(sub.gui_solution)) if w))
+        if len(subtasks) > 1 and candidates:
+            plan.append(front_step(s, sub, candidates))
         plan += [GuiItem(s, step.platform or sub.platform, i, step) for i, step in enumerate(sub.gui_solution)]
     return plan, None
 
@@ -442,23 +460,24 @@ class GuiOracleAgent:
 
         platform, step, view = item.platform, item.step, self.views[item.platform]
         facts = spec(platform)
-        window, role = step.target.window, facts.taskbar_button_role
-        seen: dict[str, Any] = {"origin": "front", "window": window, "clicks": item.tries}
+        windows, role = item.windows or (step.target.window,), facts.taskbar_button_role
+        seen: dict[str, Any] = {"origin": "front", "windows": list(windows), "clicks": item.tries}
         wanted = ("front",) if item.tries else ("front", "behind")  # after a click: it comes; first: it shows
 
-        def judge(tree: dict) -> tuple[bool, tuple[str, dict | None]]:
-            where_now = front_state(tree, window, role, facts.taskbar_marks_front, screen)
+        def judge(tree: dict) -> tuple[bool, tuple[str, dict | None, str]]:
+            where_now = front_among(tree, windows, role, facts.taskbar_marks_front, screen)
             return where_now[0] in wanted, where_now
 
         _, value, reads, _, seconds = poll_tree(view, judge, FRONT_WAIT if item.tries else step.timeout)
-        state, button = value or ("absent", None)
-        seen.update(state=state, waited=seconds, reads=reads)
+        state, button, window = value or ("absent", None, windows[0])
+        seen.update(state=state, window=window, waited=seconds, reads=reads)
         if state == "front":
             return AgentStep(platform=platform, action=Wait(seconds=0), extra=seen,
                              reasoning=f"{where}: the window {window!r} is {'in' if item.tries else 'already in'} "
                                        "front")
         if state == "absent" and not item.tries:
-            error = f"{where}: the window {window!r} did not show within {step.timeout:g} s ({reads} reads)"
+            error = (f"{where}: no window showing {' or '.join(map(repr, windows))} showed within "
+                     f"{step.timeout:g} s ({reads} reads)")
         elif role is None:
             return AgentStep(platform=platform, action=Wait(seconds=0), extra=seen,
                              reasoning=f"{where}: the {platform} device has no taskbar known: the window {window!r} "

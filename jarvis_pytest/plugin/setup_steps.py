@@ -72,7 +72,8 @@ def _window_ids(device: Device) -> dict[int, dict] | None:
 def run_setup(subtasks: Sequence[Subtask], devices: dict[str, Device]) -> dict[int, tuple[str, int]]:
     """Apply every subtask's setup steps in order, each on its step's (or subtask's) platform. Returns the window
     each subtask's set-up opened (a `launch` or `open` step), where the device lists windows: subtask index →
-    (platform, window id) — the newest new window, the focused one first (`window_titles` reads their titles)."""
+    (platform, window id) of its largest new window (`_main_first`; `window_titles` reads their titles), which is
+    brought to the front."""
     opened: dict[int, tuple[str, int]] = {}
     for s, sub in enumerate(subtasks):
         for step in sub.config:
@@ -84,7 +85,7 @@ def run_setup(subtasks: Sequence[Subtask], devices: dict[str, Device]) -> dict[i
             if before is not None:
                 new = [w for i, w in (_window_ids(devices[platform]) or {}).items() if i not in before]
                 if new:
-                    window = max(new, key=lambda w: (bool(w.get("focused")), w["id"]))
+                    window = max(new, key=_main_first)
                     opened[s] = (platform, window["id"])
                     _to_front(devices[platform], window)
     return opened
@@ -101,6 +102,13 @@ def _to_front(device: Device, window: dict) -> None:
         focus(id=window["id"], timeout=2.0)
     elif window.get("title"):
         focus(window["title"], timeout=2.0)
+
+
+def _main_first(window: dict) -> tuple:
+    """How a new window ranks as the one set-up opened: the largest (an application's window, not the dialog it
+    shows at start, Ristretto's thumbnailer warning), then the focused one, then the newest."""
+    box = window.get("box") or [0, 0, 0, 0]
+    return max(box[2], 0) * max(box[3], 0), bool(window.get("focused")), window["id"]
 
 
 def window_titles(opened: dict[int, tuple[str, int]], devices: dict[str, Device]) -> dict[int, str]:
