@@ -553,6 +553,17 @@ def test_where_the_taskbar_marks_the_front_window_its_mark_decides():
             {"role": "dialog", "name": "Desktop", "box": [500, 200, 800, 600], "states": ["active"]}]}]}
     assert front_state(tree, "Desktop", "toggle button", True)[0] == "front"
     assert front_state(tree, "Desktop", "toggle button", False)[0] == "behind"  # the desktop's own frame
+    viewer = {"role": "desktop frame", "name": "main", "children": [  # sw-0006: the warning, GIMP in front
+        {"role": "application", "name": "xfce4-panel", "children": [
+            {"role": "frame", "name": "", "box": [0, 0, 1920, 27], "children": [
+                {"role": "toggle button", "name": "garden.png - Image Viewer", "box": [110, 0, 200, 26]},
+                {"role": "toggle button", "name": "[garden] - GIMP", "box": [310, 0, 200, 26],
+                 "states": ["checked"]}]}]},
+        {"role": "application", "name": "ristretto", "children": [
+            {"role": "frame", "name": "garden.png - Image Viewer", "box": [0, 27, 1920, 1053]},
+            {"role": "alert", "name": "Warning", "box": [763, 461, 404, 242]}]}]}
+    state, button = front_state(viewer, "Warning", "toggle button", True)
+    assert state == "behind" and button["name"] == "garden.png - Image Viewer"
 
 
 def test_only_composed_plans_bring_windows_to_the_front(tmp_path):

@@ -235,23 +235,39 @@ def front_state(tree: dict, window: str, button_role: str | None, marks_front: b
                 screen: tuple[int, int] | None = None) -> tuple[str, dict | None]:
     """Where the window whose title shows `window` stands, and its taskbar button (a `button_role` control named by
     its title; None where there is none): "front", "behind", or "absent" (neither the window nor its button shows).
-    Where the taskbar marks the window in front (`marks_front`: XFCE checks its button) that mark decides, as a
-    person reads it: it holds for a window whose modal dialog has the keyboard (Ristretto's warning), for one the
+    A dialog, which has no button of its own, goes by its application's window's. Where the taskbar marks the
+    window in front (`marks_front`: XFCE checks its button) that mark decides, as a person reads it: it holds for a window whose modal dialog has the keyboard (Ristretto's warning), for one the
     tree does not show (GIMP shows nothing to AT-SPI) and among windows of one title (Settings' "Desktop" and the
     desktop itself); elsewhere the window must be the active one."""
     from jarvis_pytest.tasks.model import GuiTarget
 
+    def button_of(title: str) -> dict | None:
+        name = title if "*" in title else f"*{title}*"
+        return find_target(tree, GuiTarget.model_validate({"control": {"role": button_role, "name": name}}),
+                           screen)[0]
+
     node, _ = find_target(tree, GuiTarget(window=window), screen)
-    button = None
-    if button_role is not None:
-        name = window if "*" in window else f"*{window}*"
-        button, _ = find_target(tree, GuiTarget.model_validate({"control": {"role": button_role, "name": name}}),
-                                screen)
+    button = button_of(window) if button_role is not None else None
+    if button is None and node is not None and button_role is not None:
+        for sibling in _siblings(tree, node):  # a dialog has no button: its application's window has
+            button = button_of(sibling["name"]) if sibling.get("name") else None
+            if button is not None:
+                break
     if button is not None and (marks_front or node is None):
         return ("front" if "checked" in button.get("states", ()) else "behind"), button
     if node is not None:
         return ("front" if "active" in node.get("states", ()) else "behind"), button
     return "absent", None
+
+
+def _siblings(tree: dict, node: dict) -> list[dict]:
+    """The other windows of the application that shows `node` (AT-SPI groups them; the window-handle tree does not:
+    none there)."""
+    for app in tree.get("children", []):
+        kids = app.get("children", []) if app.get("role") == "application" else []
+        if any(k is node for k in kids):
+            return [k for k in kids if k is not node and _on_screen(k)]
+    return []
 
 
 def front_among(tree: dict, windows: Sequence[str], button_role: str | None, marks_front: bool = False,

@@ -83,7 +83,7 @@ def run_setup(subtasks: Sequence[Subtask], devices: dict[str, Device]) -> dict[i
             before = _window_ids(devices[platform]) if isinstance(step, (Launch, Open)) else None
             run_step(devices[platform], step)
             if before is not None:
-                new = [w for i, w in (_window_ids(devices[platform]) or {}).items() if i not in before]
+                new = _new_windows(devices[platform], before)
                 if new:
                     window = max(new, key=_main_first)
                     opened[s] = (platform, window["id"])
@@ -102,6 +102,22 @@ def _to_front(device: Device, window: dict) -> None:
         focus(id=window["id"], timeout=2.0)
     elif window.get("title"):
         focus(window["title"], timeout=2.0)
+
+
+NEW_WINDOW_WAIT = 15.0  # seconds a launch that changed a window's title (not a new window) gets to show its own
+
+
+def _new_windows(device: Device, before: dict[int, dict], wait: float = NEW_WINDOW_WAIT) -> list[dict]:
+    """The windows a launch opened: those not in `before`. Where there is none yet, they are awaited: a program
+    already running answers a second launch with a new window of its own process some seconds later (LibreOffice's
+    "Untitled 1" came to the front after set-up, over the window the first subtask works in: sw-0046), and the
+    launch's own wait may have ended on another window's title changing."""
+    deadline = time.monotonic() + wait
+    while True:
+        new = [w for i, w in (_window_ids(device) or {}).items() if i not in before]
+        if new or time.monotonic() >= deadline:
+            return new
+        time.sleep(0.25)
 
 
 def _main_first(window: dict) -> tuple:
