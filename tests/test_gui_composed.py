@@ -27,9 +27,14 @@ from jarvis_pytest.tasks.transfer import transfer_template
 REPO = Path(__file__).resolve().parents[1]
 DATASET = REPO / "tasks" / "composed" / "jarvis_150.json"
 BACKENDS = {"ubuntu": "ubuntu (docker)", "windows": "windows (wine)"}
-# MD tasks of the shipped dataset whose every subtask is solved through the GUI: Notepad's CRLF or WordPad's bold on
-# Windows, the transfer, then Thunar copying the received file on Ubuntu (opened from a terminal: `opens`)
-PROVEN_MD = ("md-0141", "md-0144")
+# Tasks of the shipped dataset whose every subtask is solved through the GUI: Notepad's CRLF or WordPad's bold on
+# Windows, the transfer, then Thunar copying the received file on Ubuntu (opened from a terminal: `opens`); a line
+# appended in Mousepad, carried to Windows and its line breaks made CRLF there (WordPad, on any text); and an MI task
+# whose two subtasks on each device work in different windows, each brought to the front by its taskbar button
+# (Chromium behind Ristretto and its modal warning on Ubuntu; WordPad behind Notepad on Wine)
+PROVEN_MD = ("md-0141", "md-0144", "md-0132")
+PROVEN_MI = ("mi-0058",)
+PROVEN = PROVEN_MD + PROVEN_MI
 
 
 @pytest.fixture(scope="module")
@@ -164,19 +169,25 @@ def test_a_template_missing_from_the_library_leaves_the_subtask_as_it_is(tmp_pat
 
 
 @pytest.mark.containers
-def test_md_tasks_pass_through_the_gui_end_to_end(device_images, tmp_path):
-    """The two tasks, each device driven only by the agent's actions: a document edited on Wine, carried through
-    the drive from a command line on each side, opened and copied in Thunar on Ubuntu. The drive's ledger proves the
-    transfer as for any agent."""
+def test_composed_tasks_pass_through_the_gui_end_to_end(device_images, tmp_path):
+    """Each device driven only by the agent's actions: documents edited on one device, carried through the drive
+    from a command line on each side, worked on at the other; windows brought to the front from the taskbar. The
+    drive's ledger proves each transfer as for any agent."""
     cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:xdist", "-q", str(REPO / "tasks"),
-           "-k", " or ".join(PROVEN_MD), "--agent", "gui-oracle", "--results-dir", str(tmp_path)]
-    proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=900)
+           "-k", " or ".join(PROVEN), "--agent", "gui-oracle", "--results-dir", str(tmp_path)]
+    proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=1200)
     results = {r.task_id: r for r in load_results(tmp_path)[0]}
-    assert proc.returncode == 0 and sorted(results) == sorted(PROVEN_MD), proc.stdout[-3000:]
+    assert proc.returncode == 0 and sorted(results) == sorted(PROVEN), proc.stdout[-3000:]
     for result in results.values():
         assert result.status == "passed" and all(s.passed for s in result.subtasks), result.task_id
-        transfer = next(s for s in result.subtasks if s.template.startswith("transfer-"))
+    for task_id in PROVEN_MD:
+        transfer = next(s for s in results[task_id].subtasks if s.template.startswith("transfer-"))
         assert "carried through the drive" in transfer.evaluators[0].reason
+    for task_id in PROVEN_MI:  # windows were behind others, and their taskbar buttons brought them
+        steps = [json.loads(line) for line in (tmp_path / "tasks" / task_id / "traj.jsonl").read_text().splitlines()]
+        clicked = {s["platform"] for s in steps if s["extra"].get("origin") == "front" and s["action"]
+                   and s["action"]["type"] == "CLICK"}
+        assert clicked == {"ubuntu", "windows"}, clicked
 
 
 def test_a_program_is_started_from_a_typed_command_line_by_a_name_the_shell_finds():
