@@ -17,8 +17,8 @@ command and write no file. A composed task's plan is its subtasks' GUI solutions
 has its own, `tasks/transfer.py`); what an upstream made and set-up held back (`opens`) is opened first from a
 command line opened through the GUI (`opening_steps`). It gives up on a subtask without a GUI solution, saying so,
 and on one whose template says the GUI cannot solve it on the device's backend (`gui_infeasible`). In a composed
-task, a subtask's window (`window`) is brought to the front before its steps as a person does it: its button on the
-taskbar is clicked where it is not already the active window (a click on the button of the active window would
+task, a subtask's window is brought to the front before its steps as a person does it (`front_step`): its button on
+the taskbar is clicked where it is not already in front (a click on the button of the window in front would
 minimise it).
 """
 
@@ -207,19 +207,17 @@ def poll_tree(view: A11yView, judge: Callable[[dict], tuple[bool, Any]], timeout
 
 
 def await_target(view: A11yView, target: Any, timeout: float, *, gone: bool = False, settled: bool = False,
-                 state: str | None = None, screen: tuple[int, int] | None = None,
-                 clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep) -> Found:
+                 screen: tuple[int, int] | None = None, clock: Callable[[], float] = time.monotonic,
+                 sleep: Callable[[float], None] = time.sleep) -> Found:
     """Read `view`'s tree until `target` shows on `screen` (with `gone`: until it no longer shows), at most
     `timeout` seconds (`poll_tree`). `Found.node` is the node found; with `gone` it is None once the target went.
     With `settled` (a target about to be clicked) it shows once two reads in a row give it the same box, as a
     person waits for a dialog or bubble to stop moving before clicking into it; when the timeout passes while it
-    still moves, the last box is taken. With `state` (e.g. "active") the target counts only once it has it."""
+    still moves, the last box is taken."""
     last: list[Any] = [None]
 
     def judge(tree: dict) -> tuple[bool, tuple[dict | None, str | None]]:
         node, title = find_target(tree, target, screen)
-        if state is not None and node is not None and state not in node.get("states", ()):
-            node, title = None, None
         moving = settled and node is not None and node.get("box") != last[0]
         last[0] = None if node is None else node.get("box")
         return (node is None) == gone and not moving, (node, title)
@@ -236,9 +234,10 @@ def front_state(tree: dict, window: str, button_role: str | None, marks_front: b
     """Where the window whose title shows `window` stands, and its taskbar button (a `button_role` control named by
     its title; None where there is none): "front", "behind", or "absent" (neither the window nor its button shows).
     A dialog, which has no button of its own, goes by its application's window's. Where the taskbar marks the
-    window in front (`marks_front`: XFCE checks its button) that mark decides, as a person reads it: it holds for a window whose modal dialog has the keyboard (Ristretto's warning), for one the
-    tree does not show (GIMP shows nothing to AT-SPI) and among windows of one title (Settings' "Desktop" and the
-    desktop itself); elsewhere the window must be the active one."""
+    window in front (`marks_front`: XFCE checks its button) that mark decides, as a person reads it: it holds for a
+    window whose modal dialog has the keyboard (Ristretto's warning), for one the tree does not show (GIMP shows
+    nothing to AT-SPI) and among windows of one title (Settings' "Desktop" and the desktop itself); elsewhere the
+    window must be the active one."""
     from jarvis_pytest.tasks.model import GuiTarget
 
     def button_of(title: str) -> dict | None:
@@ -279,7 +278,8 @@ def front_among(tree: dict, windows: Sequence[str], button_role: str | None, mar
         if state == "front":
             return state, button, w
     behind = [f for f in found if f[1] == "behind"]
-    for w, state, button in sorted(behind, key=lambda f: f[2] is None):
+    if behind:
+        w, state, button = min(behind, key=lambda f: f[2] is None)  # one with a button to click first
         return state, button, w
     return "absent", None, windows[0]
 
