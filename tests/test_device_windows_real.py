@@ -685,6 +685,27 @@ def test_the_os_and_programs_probes_run_on_a_windows_device(wine):
     assert found["notepad"] and found["wordpad"].lower().endswith("wordpad.exe") and found["mspaint"] is None
 
 
+def test_the_programs_probe_runs_again_where_the_device_could_not_start_it():
+    """One make test: Wine's cmd answered 9009 "Can't recognize 'C:\\jarvis\\python\\python.exe ...'" for a program
+    that exists (the device's `fault`); the probe tries again, and says so where the fault stays."""
+    from jarvis_pytest.devices.base import CommandResult
+
+    class Flaky:
+        def __init__(self, faults):
+            self.faults, self.runs = faults, 0
+
+        def run(self, command, timeout=60.0, user=None):
+            self.runs += 1
+            if self.runs <= self.faults:
+                return CommandResult(9009, "", "Can't recognize ...", fault="python.exe exists but did not start")
+            return CommandResult(0, '{"notepad": "C:\\\\windows\\\\notepad.exe"}\r\n', "")
+
+    device = Flaky(2)
+    assert real.programs_found(device, ["notepad"]) == {"notepad": "C:\\windows\\notepad.exe"} and device.runs == 3
+    with pytest.raises(InfrastructureError, match="exit 9009"):
+        real.programs_found(Flaky(real.PROGRAMS_TRIES), ["notepad"])
+
+
 @pytest.mark.containers
 def test_a_windows_without_the_librarys_screen_or_programs_is_not_kept(wine, tmp_path):
     @dataclass(frozen=True)
