@@ -32,7 +32,7 @@ import pytest
 from jarvis_pytest.devices.backend import backend_for
 from jarvis_pytest.devices.vm import windows as vm_windows
 from jarvis_pytest.devices.windows import real
-from jarvis_pytest.errors import ConfigError, InfrastructureError
+from jarvis_pytest.errors import DEVICE_FAULT_ATTEMPTS, ConfigError, InfrastructureError
 
 REPO = Path(__file__).resolve().parents[1]
 TEST_LABEL = {"org.jarvis.test": "1"}
@@ -703,7 +703,7 @@ def test_the_programs_probe_runs_again_where_the_device_could_not_start_it():
     device = Flaky(2)
     assert real.programs_found(device, ["notepad"]) == {"notepad": "C:\\windows\\notepad.exe"} and device.runs == 3
     with pytest.raises(InfrastructureError, match="exit 9009"):
-        real.programs_found(Flaky(real.PROGRAMS_TRIES), ["notepad"])
+        real.programs_found(Flaky(DEVICE_FAULT_ATTEMPTS), ["notepad"])
 
 
 @pytest.mark.containers

@@ -64,3 +64,16 @@ class Device(Protocol):
 
     def exists(self, path: str) -> bool:
         """Whether a file or folder exists at `path` on the device."""
+
+
+def run_read_only(device: "Device", command: str, **options) -> CommandResult:
+    """Run a command that only reads; one the device failed to carry out (`CommandResult.fault`: Wine's cmd could
+    not start a program that exists) is run again, up to DEVICE_FAULT_ATTEMPTS runs in all. The last result is
+    returned, still with its fault where every run had one: the caller says what that means."""
+    from jarvis_pytest.errors import DEVICE_FAULT_ATTEMPTS
+
+    for _ in range(DEVICE_FAULT_ATTEMPTS):
+        result = device.run(command, **options)
+        if not result.fault:
+            break
+    return result

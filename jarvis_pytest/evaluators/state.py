@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from jarvis_pytest.devices.base import Device
+from jarvis_pytest.devices.base import Device, run_read_only
 from jarvis_pytest.errors import DEVICE_FAULT_ATTEMPTS, DeviceFault, InfrastructureError
 from jarvis_pytest.evaluators.registry import Verdict
 
@@ -37,10 +37,9 @@ class FinalState:
         """Run a shell command on the device (as the desktop user unless `user` is given). Evaluators only read,
         so a command the device failed to carry out (`fault`) is simply run again; a device that keeps
         failing raises DeviceFault (never a verdict on a half-run command)."""
-        for _ in range(DEVICE_FAULT_ATTEMPTS):
-            res = self.device(platform).run(command, user=user)
-            if not res.fault:
-                return res
+        res = run_read_only(self.device(platform), command, user=user)
+        if not res.fault:
+            return res
         raise DeviceFault(f"an evaluator's command hit a device fault {DEVICE_FAULT_ATTEMPTS} times: {res.fault}: "
                           f"{command[:300]}")
 

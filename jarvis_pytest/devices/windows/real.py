@@ -51,6 +51,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
+from jarvis_pytest.devices.base import run_read_only
 from jarvis_pytest.devices.vm import windows as vm_windows
 from jarvis_pytest.errors import ConfigError, InfrastructureError
 
@@ -395,19 +396,12 @@ def kvm_programs(library: Path = TASKS_DIR) -> list[str]:
     return sorted(found)
 
 
-PROGRAMS_TRIES = 3  # runs of the look-up where the device could not start its Python (`CommandResult.fault`)
-
-
 def programs_found(device: Any, programs: list[str]) -> dict[str, str | None]:
     """Where the device's control server finds each program (its own `resolve`, as a launch does); None: nowhere."""
     names = ",".join(f"'{p}'" for p in programs)
     code = ("import json; from jarvis_pytest.devices.windows.server.system import resolve; "
             f"print(json.dumps(dict((p, resolve(p)) for p in [{names}])))")
-    for attempt in range(PROGRAMS_TRIES):  # Wine's cmd sometimes cannot start a program that exists (a device fault)
-        result = device.run(rf'C:\jarvis\python\python.exe -c "{code}"', timeout=60)
-        if not getattr(result, "fault", None):
-            break
-        time.sleep(0.5 * (attempt + 1))
+    result = run_read_only(device, rf'C:\jarvis\python\python.exe -c "{code}"', timeout=60)
     try:
         return json.loads(result.stdout.strip().splitlines()[-1])
     except (ValueError, IndexError):
