@@ -18,6 +18,19 @@ SHELL_TITLE = "jarvis-shell"  # the title of a command line a GUI solution opens
 
 
 @dataclass(frozen=True)
+class FileDialog:
+    """How a person drives the desktop's file dialog from the keyboard, as a browser shows it (a web page's "Choose
+    Files", "Save link as…"): GTK's chooser on Ubuntu. Chromium loads no GTK accessibility bridge, so the dialog is
+    not in the accessibility tree: it is given `shows_within` seconds to show, and what it did is read from the page
+    after it closed."""
+
+    type_path: tuple[str, ...]   # in an Open dialog: shows the field that takes a typed path
+    open: tuple[str, ...]        # the Open button (its mnemonic; Return in the typed path does not press it)
+    save: tuple[str, ...]        # the Save button; the name field has the keyboard and takes a whole path
+    shows_within: float = 3.0
+
+
+@dataclass(frozen=True)
 class PlatformSpec:
     """One platform's facts."""
 
@@ -59,6 +72,11 @@ class PlatformSpec:
     # with no state to read)
     taskbar_button_role: str | None = None
     taskbar_marks_front: bool = False
+    # the desktop's web browser (a program `start_command` starts with a URL) and its file dialog: GUI solutions
+    # reach the transfer drive's web page with it (`tasks/transfer.py`); None: no browser (Wine has none: its
+    # Gecko is not packaged), and such a device reaches the drive from its command line
+    browser: str | None = None
+    file_dialog: FileDialog | None = None
 
     @property
     def sep(self) -> str:
@@ -187,7 +205,8 @@ PLATFORMS: dict[str, PlatformSpec] = {
                          "target": {"window": "Terminal - ", "control": {"role": "terminal", "text": "*$"}}},
                         {"type": "CLICK", "target": {"window": "Terminal - ", "control": {"role": "terminal"}}}),
         gui_shell_title=f"PS1='$ '; printf '\\033]0;{SHELL_TITLE}\\007'", taskbar_button_role="toggle button",
-        taskbar_marks_front=True),
+        taskbar_marks_front=True, browser="chromium",
+        file_dialog=FileDialog(type_path=("ctrl", "l"), open=("alt", "o"), save=("alt", "s"))),
 }
 PLATFORM_NAMES: tuple[str, ...] = tuple(PLATFORMS)
 

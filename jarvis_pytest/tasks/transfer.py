@@ -13,9 +13,10 @@ purpose is not compared, and that subtask's evaluators take the arrived bytes as
 
 The oracle solution uploads on the source and downloads on the destination with each device's own means
 (`PlatformSpec.drive_put_command`/`drive_get_command`: curl on Linux, a copy to the drive letter `S:` on Windows,
-where Wine has no curl.exe), against the copyparty flavour. Its GUI solution types the same commands into a
-command line each device opens through its GUI (XFCE's terminal shortcut; Wine's Start > Run... > cmd.exe), as an
-agent told the drive's address would; a browser on the drive's web page would be another way.
+where Wine has no curl.exe), against the copyparty flavour. Its GUI solution goes through the drive's web page in
+the device's browser where it has one (Ubuntu: Chromium, an upload form and "Save link as…"), and elsewhere types the
+oracle's command into a command line the device opens through its GUI (Wine: Start > Run... > cmd.exe; Wine has no
+browser, and its Explorer's Copy and Paste did nothing when tried), as an agent told the drive's address would.
 """
 
 from __future__ import annotations
@@ -73,13 +74,68 @@ def transfer_template(source: str, dest: str) -> TaskTemplate:
 
 
 def _gui_solution(source: str, dest: str, upload: str, download: str) -> list[GuiStep]:
-    """The same commands typed into each device's command line opened through the GUI (`PlatformSpec.
-    gui_shell_steps`), an agent's own way; none where a platform has no such recipe (Android)."""
-    up = spec(source).gui_shell_steps(upload, "upload to the network drive")
-    down = spec(dest).gui_shell_steps(download, "download from the network drive")
+    """Each side through its GUI: the drive's web page in the device's browser where it has one (`_browser_upload`,
+    `_browser_download`), else the oracle's command typed into the command line the device opens through its GUI
+    (`PlatformSpec.gui_shell_steps`); none where a platform has neither (Android)."""
+    up = _browser_upload(source) or spec(source).gui_shell_steps(upload, "upload to the network drive")
+    down = _browser_download(dest) or spec(dest).gui_shell_steps(download, "download from the network drive")
     if not up or not down:
         return []
     return [GuiStep.model_validate(step) for step in up + down]
+
+
+def _open_drive_page(facts, note: str) -> list[dict]:
+    """The drive's folder in the device's browser, started from its command line: copyparty's basic view (`?b=u`),
+    a plain upload form above the folder's listing, whose links carry the password given in the address."""
+    page = f"http://{TRANSFER_ALIAS}:{TRANSFER_PORT}{TRANSFER_FOLDER}/?b=u&pw={TRANSFER_PASSWORD}"
+    return facts.gui_shell_steps(facts.start_command(facts.browser, [page]), note)
+
+
+def _step(platform: str, kind: str, **fields) -> dict:
+    return {"type": kind, "platform": platform, **fields}
+
+
+def _browser_upload(platform: str) -> list[dict]:
+    """Upload through the drive's web page: "Choose Files", the file's path typed into the file dialog, "start
+    upload", and the drive's answer awaited (its page links back to the folder only once the upload is stored)."""
+    facts = spec(platform)
+    dialog = facts.file_dialog
+    if facts.browser is None or dialog is None:
+        return []
+    choose = {"control": {"role": "push button", "name": "Choose Files*"}}
+    return [*_open_drive_page(facts, "open the drive's web page"),
+            _step(platform, "WAIT_FOR", target=choose, timeout=60, note="the page with its upload form"),
+            _step(platform, "CLICK", target=choose),
+            _step(platform, "WAIT", seconds=dialog.shows_within, note="the file dialog"),
+            _step(platform, "HOTKEY", keys=list(dialog.type_path)),
+            _step(platform, "TYPING", text=f"{{{{{TRANSFER_INPUT}}}}}"),
+            _step(platform, "HOTKEY", keys=list(dialog.open)),
+            _step(platform, "WAIT_FOR", timeout=20, note="the form holds the file",
+                  target={"control": {"role": "push button", "name": f"Choose Files: {{{{{TRANSFER_INPUT}.name}}}}"}}),
+            _step(platform, "CLICK", target={"control": {"role": "push button", "name": "start upload"}},
+                  note="upload to the network drive"),
+            _step(platform, "WAIT_FOR", target={"control": {"role": "link", "name": "return to*"}}, timeout=60,
+                  note="the drive's answer: the file is stored")]
+
+
+def _browser_download(platform: str) -> list[dict]:
+    """Download through the drive's web page: the file's link, "Save link as…" in its context menu, and the whole
+    destination path typed as the name in the file dialog."""
+    facts = spec(platform)
+    dialog = facts.file_dialog
+    if facts.browser is None or dialog is None:
+        return []
+    link = {"control": {"role": "link", "name": f"{{{{{TRANSFER_INPUT}.name}}}}"}}
+    save_as = {"control": {"role": "menu item", "name": "Save link as*"}}
+    return [*_open_drive_page(facts, "open the drive's web page"),
+            _step(platform, "WAIT_FOR", target=link, timeout=60, note="the file's link in the drive's folder"),
+            _step(platform, "RIGHT_CLICK", target=link),
+            _step(platform, "CLICK", target=save_as),
+            _step(platform, "WAIT", seconds=dialog.shows_within, note="the file dialog"),
+            _step(platform, "HOTKEY", keys=["ctrl", "a"], note="the suggested name, replaced by the whole path"),
+            _step(platform, "TYPING", text=f"{{{{{TRANSFER_OUTPUT}}}}}"),
+            _step(platform, "HOTKEY", keys=list(dialog.save), note="download from the network drive"),
+            _step(platform, "WAIT", seconds=5, note="the download is written")]
 
 
 def is_transfer(template_id: str) -> bool:
