@@ -41,6 +41,11 @@ TREE_TIMEOUT = 8.0  # seconds one read may take on the device
 FRONT_SHOW = 30.0  # seconds a subtask's window gets to show before it is brought to the front
 FRONT_WAIT = 5.0  # seconds a window gets to come to the front after a click on its taskbar button
 FRONT_CLICKS = 2  # clicks on a window's taskbar button before giving up on bringing it to the front
+# the least time between two presses of a button on one device, as a person leaves: GTK's menus take a button's
+# release within half a second of the press that opened them for the end of that press, not a click (gtkmenushell.c,
+# MENU_SHELL_TIMEOUT), so a click on a menu item that came that soon did nothing (Thunar's Edit > Paste, mi-0094)
+CLICK_GAP = 0.6
+PRESSES = frozenset({"CLICK", "RIGHT_CLICK", "DOUBLE_CLICK", "MOUSE_DOWN"})
 
 
 def backend_name(label: str) -> str:
@@ -404,7 +409,7 @@ class GuiOracleAgent:
     """Carries out the task's GUI plan (`gui_plan`), handed to it with the devices' accessibility views by
     `oracle.brief` after `reset`; see the module's docstring."""
 
-    __slots__ = ("options", "views", "queue", "last_platform", "failed", "briefed", "pending")
+    __slots__ = ("options", "views", "queue", "last_platform", "failed", "briefed", "pending", "pressed")
     name = "gui-oracle"
 
     def __init__(self, options: dict[str, Any] | None = None):
@@ -418,8 +423,19 @@ class GuiOracleAgent:
         self.failed: AgentStep | None = None
         self.briefed: bool | str = False  # True, or why there is no plan
         self.pending: GuiItem | None = None  # the step whose action the harness is carrying out
+        self.pressed: dict[str, float] = {}  # platform → when its last button press was handed out (monotonic)
 
     def act(self, observations: dict[str, Observation], history: list[HistoryEntry]) -> AgentStep:
+        """The next step; a press of a button comes at least CLICK_GAP seconds after the last one on its device."""
+        step = self._next(observations, history)
+        if step.action is not None and step.action.type in PRESSES and step.platform is not None:
+            since = time.monotonic() - self.pressed.get(step.platform, float("-inf"))
+            if since < CLICK_GAP:
+                time.sleep(CLICK_GAP - since)
+            self.pressed[step.platform] = time.monotonic()
+        return step
+
+    def _next(self, observations: dict[str, Observation], history: list[HistoryEntry]) -> AgentStep:
         if self.briefed is not True:
             why = self.briefed or "the harness handed it no GUI solution for this task (`brief`)"
             return AgentStep(platform=self.last_platform, action=Fail(), reasoning=f"gui-oracle: {why}")
