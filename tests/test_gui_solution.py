@@ -156,6 +156,47 @@ def test_a_gui_step_that_types_a_number_slot_types_its_text(tmp_path):
     assert sub.gui_solution[0].action().text == str(count) and sub.gui_solution[1].target.text == str(count)
 
 
+FILE_TEXT = {"/home/user/Documents/groceries.txt": "g", "/home/user/Documents/packing_list.txt": "p",
+             "/home/user/Desktop/chores.txt": "c"}
+GUI_VALUES_REFUSED = [
+    ("a slot that is not an input", {"letter": {"slot": "nothing", "text": {"a": "1"}}},
+     ["gui_values.letter", "'nothing' is not an input slot with choices"]),
+    ("a choice without its text", {"letter": {"slot": "list_file", "text": {"/home/user/Desktop/chores.txt": "c"}}},
+     ["gui_values.letter", "give a text for each choice"]),
+    ("a text for what is no choice", {"letter": {"slot": "list_file", "text": dict(FILE_TEXT, other="o")}},
+     ["gui_values.letter", "and for no other value"]),
+    ("a slot an upstream may feed", {"letter": {"slot": "item", "text": {"x": "1"}}},
+     ["gui_values.letter", "may be fed from an upstream subtask", "feedable"]),
+    ("the name of a slot", {"item": {"slot": "list_file", "text": FILE_TEXT}},
+     ["gui_values.item", "names a slot of the template"]),
+]
+
+
+@pytest.mark.parametrize("what, values, words", GUI_VALUES_REFUSED, ids=[r[0] for r in GUI_VALUES_REFUSED])
+def test_gui_values_give_a_text_for_each_choice_of_a_slot_that_is_never_fed(tmp_path, what, values, words):
+    with pytest.raises(ConfigError) as caught:
+        load_library(library_with(tmp_path, gui_values=values, gui_solution=[GOOD_STEP]))
+    assert all(w in str(caught.value) for w in words), str(caught.value)
+
+
+def test_a_gui_value_is_typed_as_the_text_of_the_slots_choice(tmp_path):
+    """windows-control-file_extensions types 0 for `show` and 1 for `hide` (HideFileExt): text a slot's choice
+    decides, given per choice; only a GUI solution may use it."""
+    steps = [{"type": "TYPING", "text": "{{letter}}:{{list_file.name}}"}]
+    lib = load_library(library_with(tmp_path, gui_values={"letter": {"slot": "list_file", "text": FILE_TEXT}},
+                                    gui_solution=steps))
+    seen = set()
+    for seed in range(6):
+        sub = atomic_task(lib.templates[0], seed).formatted_subtasks[0]
+        path = str(sub.input["list_file"].value)
+        assert sub.gui_solution[0].action().text == f"{FILE_TEXT[path]}:{Path(path).name}"
+        seen.add(path)
+    assert len(seen) > 1
+    with pytest.raises(ConfigError, match="names no slot"):
+        load_library(library_with(tmp_path / "b", gui_values={"letter": {"slot": "list_file", "text": FILE_TEXT}},
+                                  instruction="Type {{letter}}."))
+
+
 def test_a_template_without_gui_fields_keeps_its_definition():
     """Adding the fields changed no atomic task's definition (what --resume compares) nor the library's digest."""
     lib = load_library(REPO / "tasks")

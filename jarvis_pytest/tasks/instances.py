@@ -71,8 +71,11 @@ def _render_steps(steps: list, model: type | TypeAdapter, values: Mapping[str, S
 
 
 def _gui_fields(template: TaskTemplate, values: Mapping[str, Scalar], where: Where) -> dict[str, Any]:
-    """A subtask's `gui_solution` and `gui_infeasible`, rendered from its template with `values` (None when empty)."""
-    return {"gui_solution": _render_steps(template.gui_solution, GuiStep, values, where.at("gui_solution")) or None,
+    """A subtask's `gui_solution` and `gui_infeasible`, rendered from its template with `values` (None when empty);
+    the GUI solution also with its `gui_values`, the text each takes for its slot's value."""
+    typed = {**values, **{name: v.text[str(values[v.slot])] for name, v in template.gui_values.items()
+                          if str(values.get(v.slot)) in v.text}}
+    return {"gui_solution": _render_steps(template.gui_solution, GuiStep, typed, where.at("gui_solution")) or None,
             "gui_infeasible": {k: render_text(v, values, where.at(f"gui_infeasible.{k}"))
                                for k, v in sorted(template.gui_infeasible.items())} or None}
 

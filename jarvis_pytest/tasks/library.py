@@ -22,7 +22,7 @@ from jarvis_pytest.devices.actions import PLATFORMS
 from jarvis_pytest.errors import ConfigError
 from jarvis_pytest.tasks.evaluator_args import check_evaluator_args, slot_samples
 from jarvis_pytest.tasks.instances import check_pattern, materialise, sample_inputs
-from jarvis_pytest.tasks.model import TaskTemplate
+from jarvis_pytest.tasks.model import InputSlot, TaskTemplate
 from jarvis_pytest.tasks.templating import Where, find_placeholders, walk_strings
 from jarvis_pytest.tasks.transfer import is_transfer
 from jarvis_pytest.tasks.types import TypeSystem, load_types
@@ -74,7 +74,7 @@ def _digested(tpl: TaskTemplate) -> dict[str, Any]:
     """What a template's digest covers: all of it, less GUI solution fields it leaves empty (so adding the fields
     changed no library's digest)."""
     data = tpl.model_dump(mode="json", by_alias=True)
-    for key in ("gui_solution", "gui_infeasible"):
+    for key in ("gui_solution", "gui_values", "gui_infeasible"):
         if not data[key]:
             del data[key]
     return data
@@ -208,10 +208,11 @@ def validate_template(tpl: TaskTemplate, types: TypeSystem, *, path: object = No
                             "output values may use input slots only")
     slots = {**tpl.inputs, **tpl.outputs}
     _check_placeholders(tpl.instruction, slots, types, tpl, where.at("instruction"))
+    gui_slots = {**slots, **_check_gui_values(tpl, slots, where)}
     for section in ("config", "evaluate", "solution", "negatives", "gui_solution"):
         data = [item.model_dump(mode="json", exclude_none=True) for item in getattr(tpl, section)]
         for text, loc in walk_strings(data, where.at(section)):
-            _check_placeholders(text, slots, types, tpl, loc)
+            _check_placeholders(text, gui_slots if section == "gui_solution" else slots, types, tpl, loc)
     _check_gui_infeasible(tpl, slots, types, where)
     for i, text in enumerate(tpl.baseline):
         _check_placeholders(text, slots, types, tpl, where.at(f"baseline[{i}]"))
@@ -244,6 +245,29 @@ def validate_template(tpl: TaskTemplate, types: TypeSystem, *, path: object = No
                 raise fail(f"config[{i}].fixture", problem, "put the file under fixtures/files/ and name it "
                            "relative to that folder")
     materialise(tpl, sample_inputs(tpl, random.Random(0)), source=path, gui=True)
+
+
+def _check_gui_values(tpl: TaskTemplate, slots: dict[str, Any], where: Where) -> dict[str, InputSlot]:
+    """`gui_values` name new names, each a text for every choice of an input slot that has choices; returned as
+    text slots, the names a GUI solution's placeholders may use besides the template's slots."""
+    out = {}
+    for name, value in tpl.gui_values.items():
+        at = where.at(f"gui_values.{name}")
+        if name in slots:
+            raise at.error(f"gui_values names a slot of the template ({name!r})", "give the value a name of its own")
+        slot = tpl.inputs.get(value.slot)
+        if slot is None or slot.choices is None:
+            raise at.error(f"slot {value.slot!r} is not an input slot with choices",
+                           f"use one of {sorted(n for n, s in tpl.inputs.items() if s.choices is not None) or 'none'}")
+        if slot.feedable:
+            raise at.error(f"slot {value.slot!r} may be fed from an upstream subtask, whose value is none of its choices",
+                           f"mark {value.slot!r} `\"feedable\": false`")
+        choices = {str(c) for c in slot.choices}
+        if set(value.text) != choices:
+            raise at.error(f"text gives {sorted(value.text)} for the choices {sorted(choices)} of {value.slot!r}",
+                           "give a text for each choice, and for no other value")
+        out[name] = InputSlot(type="text")
+    return out
 
 
 def _check_gui_infeasible(tpl: TaskTemplate, slots: dict[str, Any], types: TypeSystem, where: Where) -> None:

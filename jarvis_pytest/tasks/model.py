@@ -329,6 +329,13 @@ class InputSlot(_Strict):
         return self.choices is not None or self.range is not None or self.pattern is not None
 
 
+class GuiValue(_Strict):
+    """Text a GUI solution types that an input slot's choice decides: `text[choice]` for the slot's value."""
+
+    slot: SlotName
+    text: dict[str, str] = Field(min_length=1, description="the slot's choice (as text) → what to type for it")
+
+
 class OutputSlot(_Strict):
     """An output slot (id, type) whose value is materialised from the inputs by a template (the paper's M(v_I))."""
 
@@ -358,6 +365,10 @@ class TaskTemplate(_Strict):
         default_factory=list, description="the task solved through the GUI alone: actions of the agent's action "
         "space, targets named by what a person sees (`jarvis qc` checks the task passes after them; the "
         "`gui-oracle` agent runs them)")
+    gui_values: dict[SlotName, GuiValue] = Field(
+        default_factory=dict, description="text a GUI solution types that the choice of an input slot decides (the "
+        "0 or 1 a registry value takes for `show` or `hide`): name → the slot and the text for each of its choices; "
+        "a GUI step uses it as `{{name}}`")
     gui_infeasible: dict[str, str] = Field(
         default_factory=dict, description="backend → why the GUI cannot solve the task there (e.g. "
         "{\"wine\": \"Wine's Paint has no ...\"}); `jarvis qc` shows the reason instead of running a GUI solution")
