@@ -70,7 +70,7 @@ def test_qc_on_real_devices_finds_both_kinds_of_violation(device_images, tmp_pat
     assert proc.returncode == 1, out[-3000:] + proc.stderr[-2000:]
     rows = {line.split("|")[1].strip(): line for line in out.splitlines() if line.startswith("| ubuntu-qc-")}
     assert len(rows) == 10, out[-3000:]
-    assert all("| fail | 2/2 fail | pass | none yet | ok |" in rows[f"ubuntu-qc-good[seed{i}]"] for i in (0, 1))
+    assert all("| fail | 2/2 fail | pass | pass | ok |" in rows[f"ubuntu-qc-good[seed{i}]"] for i in (0, 1))
     assert "| PASS | " in rows["ubuntu-qc-already_solved[seed0]"] and "passes untouched" in rows["ubuntu-qc-already_solved[seed0]"]
     assert "| FAIL | none yet | VIOLATED | oracle fails: file_text_equals" in rows["ubuntu-qc-oracle_fails[seed0]"]
     assert "| PASS | " in rows["ubuntu-qc-guard_holds[seed1]"] and "passes untouched: file_exists" in rows["ubuntu-qc-guard_holds[seed1]"]
@@ -89,13 +89,18 @@ def gui_result(task: str, app: str, state: str, reason: str = "") -> TaskResult:
 
 
 def test_the_gui_column_and_the_counts_per_application():
-    """The fourth check: a failing GUI solution is a violation with its reason; infeasible and none-yet are not."""
+    """The fourth check: a failing GUI solution is a violation with its reason, and so is none on Ubuntu and
+    Windows, whose every template has one; infeasible (with its reason) is not, nor none on Android."""
     rows = {s: qc_row(gui_result(f"ubuntu-{s}[seed0]", "Editor", s, "why")) for s in ("passed", "failed",
                                                                                       "infeasible", "none")}
     assert [rows[s]["gui"] for s in ("passed", "failed", "infeasible", "none")] == \
         ["pass", "FAIL", "infeasible", "none yet"]
     assert rows["failed"]["gate"] == "VIOLATED" and rows["failed"]["reason"] == "GUI solution fails: why"
-    assert all(rows[s]["gate"] == "ok" for s in ("passed", "infeasible", "none"))
+    assert all(rows[s]["gate"] == "ok" for s in ("passed", "infeasible"))
+    assert rows["none"]["gate"] == "VIOLATED" and rows["none"]["reason"].startswith(
+        "no GUI solution: ubuntu-none needs a `gui_solution`, or `gui_infeasible` for docker")
+    android = gui_result("android-none[seed0]", "Files", "none").model_copy(update={"platforms": ["android"]})
+    assert (qc_row(android)["gui"], qc_row(android)["gate"]) == ("none yet", "ok")
     table = gui_table([gui_result("ubuntu-a[seed0]", "Editor", "passed"), gui_result("ubuntu-a[seed1]", "Editor",
                        "passed"), gui_result("ubuntu-b[seed0]", "Editor", "passed"),
                        gui_result("ubuntu-b[seed1]", "Editor", "failed", "lost"),  # one failing instance: failing
@@ -110,7 +115,7 @@ def test_the_gui_column_and_the_counts_per_application():
 @pytest.mark.containers
 def test_qc_gui_check_on_real_devices(device_images, tmp_path):
     """A GUI solution that solves the task passes the fourth check; one whose target never shows is a violation
-    naming the step; `gui_infeasible` shows its reason; a template with neither is "none yet" and passes the gate."""
+    naming the step; `gui_infeasible` shows its reason; an Ubuntu template with neither is "none yet", a violation."""
     proc = subprocess.run([sys.executable, "-m", "jarvis_pytest.cli", "qc", "--library", str(GUI_LIBRARY),
                            "--results-dir", str(tmp_path / "qc"), "--instances", "1", "-n", "1",
                            "--platform", "ubuntu"], cwd=REPO, capture_output=True, text=True, timeout=600)
@@ -122,8 +127,9 @@ def test_qc_gui_check_on_real_devices(device_images, tmp_path):
     assert "| pass | FAIL | VIOLATED | GUI solution fails: the GUI solution ended with fail: gui_solution[0]: " \
            "a control (role='push button' name='Type It For Me')" in missing and "within 2 s" in missing, missing
     assert "| pass | infeasible | ok |" in rows["ubuntu-qcgui-gui_infeasible[seed0]"], out[-3000:]
-    assert "| pass | none yet | ok |" in rows["ubuntu-qcgui-gui_none[seed0]"], out[-3000:]
-    assert "3/4 instances pass the quality gate" in out
+    assert "| pass | none yet | VIOLATED | no GUI solution: ubuntu-qcgui-gui_none needs a `gui_solution`" in \
+        rows["ubuntu-qcgui-gui_none[seed0]"], out[-3000:]
+    assert "2/4 instances pass the quality gate" in out
     assert "| ubuntu (docker) | Text Editor | 1 | 1 | 1 | 1 |" in out, out[-3000:]
     assert "- infeasible: ubuntu-qcgui-gui_infeasible on ubuntu (docker): this editor has no keyboard here" in out
     status = {name: json.loads((tmp_path / "qc" / "tasks" / f"ubuntu-qcgui-{name}_seed0" / "result.json")

@@ -5,7 +5,7 @@ state, it passes after the oracle), each atomic task runs its template's `gui_so
 as for any agent, then the built-in GUI oracle (`agents/gui_oracle.py`) through the harness's own step loop, so
 the devices see exactly what an agent's actions produce, then every evaluator. A template that says the GUI
 cannot solve it on the run's backend (`gui_infeasible`) shows its reason instead, and one with neither counts
-as "no GUI solution yet" (not a violation while the GUI solutions are rolled out). Its trajectory and screenshots
+as "no GUI solution yet" (a violation on Ubuntu and Windows: `tasks/qc.GUI_REQUIRED`). Its trajectory and screenshots
 are in the task's `gui/` folder.
 """
 
