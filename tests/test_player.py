@@ -299,6 +299,31 @@ def test_a_person_who_does_not_act_by_the_deadline_gives_an_error_step(human):
     assert got.action is None and "no input" in got.error and time.monotonic() - t0 < 3
 
 
+def test_a_closed_page_ends_the_task_as_the_persons_fail():
+    """An abandoned tab held the task's devices until the task's time limit: once the page has asked anything, a
+    silence of `abandon_after` seconds ends the task with the person's FAIL. A page that keeps asking, or one not
+    opened yet, is waited for."""
+    agent = HumanAgent({"abandon_after": "0.6"})
+    agent.reset(TASK)
+    try:
+        step = Step(agent, seconds=30)
+        time.sleep(1.0)  # no page yet: nothing is abandoned
+        for _ in range(6):  # a page that keeps asking
+            agent.player.state()
+            time.sleep(0.2)
+        assert step.value is None and agent.player.waiting
+        t0 = time.monotonic()
+        got = step.result()  # then the page goes
+        assert got.action == A.Fail() and "the person left" in got.reasoning and got.platform == "ubuntu"
+        assert 0.4 <= time.monotonic() - t0 < 3
+        assert agent.player.state()["ending"] == "fail"
+    finally:
+        agent.close()
+    for bad in ("soon", "0"):
+        with pytest.raises(ConfigError, match="abandon_after"):
+            HumanAgent({"abandon_after": bad})
+
+
 def test_the_server_answers_its_page_only(human):
     base = human.url.split("/#token=")[0]
     token = human.url.split("#token=")[1]

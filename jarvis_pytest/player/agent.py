@@ -31,12 +31,17 @@ from pathlib import Path
 from typing import Any, Callable
 
 from jarvis_pytest.agents.protocol import AgentStep, HistoryEntry, TaskContext
+from jarvis_pytest.devices.actions import Fail
 from jarvis_pytest.devices.base import Observation
 from jarvis_pytest.errors import ConfigError
 from jarvis_pytest.llm.deadline import remaining
 from jarvis_pytest.player.inputs import Input, InputRefused, describe, merge, translate
 
 FRAME_CACHE = 0.15  # seconds a live frame is reused for another request of the page
+# seconds without a request of the page (after its first) that end the task as the person's FAIL: the tab was
+# closed, and the devices are not held until the task's time limit. A hidden tab still asks about once a minute
+# (Chromium's intensive timer throttling), so it is not taken for a closed one.
+ABANDON_AFTER = 180.0
 QUEUE_LIMIT = 200  # inputs made ahead of the steps that carry them out
 LOG_LENGTH = 8  # steps the page lists
 
@@ -81,6 +86,8 @@ class Player:
         self.last_error: str | None = None
         self._frames: dict[str, tuple[float, bytes]] = {}
         self._grab_locks: dict[str, threading.Lock] = collections.defaultdict(threading.Lock)
+        self.seen: float | None = None  # when the page last asked anything (None: it has not yet)
+        self.abandon_after = ABANDON_AFTER
 
     # -- the loop's side ------------------------------------------------------------------------------------
     def begin(self, task: TaskContext) -> None:
@@ -115,6 +122,11 @@ class Player:
             if item is None:
                 return AgentStep(platform=None, action=None,
                                  error="the person made no input before the step's deadline")
+            if item == "left":
+                self.ending = "fail"
+                return AgentStep(platform=self.task.platforms[0] if self.task and self.task.platforms else None,
+                                 action=Fail(), reasoning=f"the person left: the player's page asked nothing for "
+                                                          f"{self.abandon_after:g} s (its tab was closed)")
             shown = self.shown_at if self.shown_at is not None else self.step_started
             queued = item.at < self.step_started
             think = 0.0 if queued else max(0.0, item.at - shown)
@@ -125,8 +137,9 @@ class Player:
         return AgentStep(platform=item.platform, action=item.action, reasoning=f"a person in the player: "
                          f"{describe(item.action)}", extra={"player": said})
 
-    def _next(self) -> Input | None:
-        """The next input (the oldest made), waiting for one; None once the step's deadline passed."""
+    def _next(self) -> Input | str | None:
+        """The next input (the oldest made), waiting for one; None once the step's deadline passed; "left" once
+        the page, having asked before, asked nothing for `abandon_after` seconds."""
         while True:
             now = time.monotonic()
             if self.ready:
@@ -138,6 +151,8 @@ class Player:
             left = remaining()
             if left is not None and left <= 0:
                 return None
+            if self.seen is not None and now - self.seen > self.abandon_after:
+                return "left"
             waits = [1.0] + ([left] if left is not None else [])
             if self.pending is not None:
                 waits.append(self.pending.open_until() - now)
@@ -147,6 +162,8 @@ class Player:
     def receive(self, event: dict[str, Any]) -> dict[str, Any]:
         """Take one event of the page (see `inputs.translate`); raises InputRefused (or NotTaking) with why not."""
         seq = event.get("seq")
+        with self.cond:
+            self.seen = time.monotonic()
         if isinstance(seq, bool) or not isinstance(seq, int):
             raise InputRefused("an event needs its sequence number `seq` (an integer)")
         with self.cond:
@@ -186,6 +203,7 @@ class Player:
     def state(self) -> dict[str, Any]:
         """What the page shows besides the screens."""
         with self.cond:
+            self.seen = time.monotonic()
             task = self.task
             return {
                 "task": None if task is None else {"id": task.task_id, "instruction": task.instruction,
@@ -207,6 +225,7 @@ class Player:
         live. Raises LookupError when there is none to show."""
         asked = time.monotonic()
         with self.cond:
+            self.seen = asked
             view = self.views.get(platform)
             shot = self.shots.get(platform)
         png, live = None, False
@@ -232,7 +251,8 @@ class Player:
 
 class HumanAgent:
     """A person in the browser player (see the module's docstring). Options: `port` (default 0: a free port),
-    `url_file` (where the player's address is written once it listens, for `jarvis play`)."""
+    `url_file` (where the player's address is written once it listens, for `jarvis play`), `abandon_after`
+    (seconds without a request of the page that end the task as a FAIL; default ABANDON_AFTER)."""
 
     name = "human"
     paced_by_person = True  # the loop bounds its decisions by the task's time limit, not --step-timeout
@@ -244,8 +264,18 @@ class HumanAgent:
             raise ConfigError(f"port {raw!r} is not a port number", field="--agent-option port",
                               fix="give 0 (a free port) or a port from 1 to 65535")
         self.port = int(raw)
+        abandon = str(self.options.get("abandon_after", ABANDON_AFTER))
+        try:
+            after = float(abandon)
+        except ValueError:
+            after = -1.0
+        if not after > 0:
+            raise ConfigError(f"abandon_after {abandon!r} is not a number of seconds", field="--agent-option "
+                              "abandon_after", fix=f"give the seconds without a request of the page that end the task "
+                              f"(default {ABANDON_AFTER:g})")
         self.url_file = Path(self.options["url_file"]) if self.options.get("url_file") else None
         self.player = Player()
+        self.player.abandon_after = after
         self.server: Any = None
 
     @property
