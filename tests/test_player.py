@@ -165,7 +165,7 @@ def test_events_become_actions_in_device_pixels():
     with pytest.raises(I.InputRefused, match="no screen of ubuntu"):
         I.translate(ev("click", x=1, y=1, w=2, h=2), None, at)
     with pytest.raises(I.InputRefused, match="unknown input kind"):
-        I.translate(ev("hover", x=1, y=1, w=2, h=2), SCREEN, at)
+        I.translate(ev("pinch", x=1, y=1, w=2, h=2), SCREEN, at)
     with pytest.raises(I.InputRefused, match="combo"):
         I.translate(ev("keys", combo="ctrl++"), SCREEN, at)
     with pytest.raises(I.InputRefused, match="not a valid TYPING"):
@@ -199,6 +199,32 @@ def test_a_second_click_in_place_is_a_double_click_and_wheel_turns_add_up():
     assert I.merge(w1, w2).action == A.Scroll(dy=1, x=50, y=50)  # 120 px: one notch, not two rounded up
     w3 = I.translate(ev("scroll", x=50, y=50, w=1920, h=1080, dy=100), SCREEN, 0.2)
     assert I.merge(I.merge(w1, w2), w3).action.dy == 2
+
+
+def test_a_touch_screen_takes_gestures_and_system_buttons_and_a_desktop_a_resting_pointer():
+    """Android's screen (`PlatformSpec.touch`): a drag is a SWIPE at its own speed, a press held 0.6 s or longer a
+    LONG_PRESS, the page's buttons SYSTEM_BUTTON; a desktop's drag stays DRAG_TO, a held click a CLICK, and the
+    mouse at rest a MOVE_TO, which a touch screen has no pointer for."""
+    phone, shown = (1080, 2400), {"w": 108, "h": 240}
+    swipe = I.translate({"platform": "android", "kind": "drag", "start_x": 54, "start_y": 200, "x": 54, "y": 40,
+                         "held_ms": 250, **shown}, phone, 0.0)
+    assert swipe.action == A.Swipe(x=540, y=2000, dx=0, dy=-1600, duration=250)
+    held = {"platform": "android", "kind": "click", "x": 10, "y": 20, "held_ms": 900, **shown}
+    assert I.translate(held, phone, 0.0).action == A.LongPress(x=100, y=200, duration=900)
+    assert I.translate({**held, "held_ms": 200}, phone, 0.0).action == A.Click(x=100, y=200)
+    assert I.translate({**held, "held_ms": 99_999}, phone, 0.0).action.duration == I.GESTURE_MS[1]
+    assert I.translate({"platform": "android", "kind": "button", "button": "back"}, None, 0.0).action == \
+        A.SystemButton(button="back")
+    with pytest.raises(I.InputRefused, match="not a valid SYSTEM_BUTTON"):
+        I.translate({"platform": "android", "kind": "button", "button": "recents"}, None, 0.0)
+    with pytest.raises(I.InputRefused, match="has no system buttons"):
+        I.translate({"platform": "ubuntu", "kind": "button", "button": "home"}, SCREEN, 0.0)
+    desk = {"platform": "ubuntu", "x": 96, "y": 54, "w": 192, "h": 108}
+    assert I.translate({**desk, "kind": "click", "held_ms": 900}, SCREEN, 0.0).action == A.Click(x=960, y=540)
+    assert I.translate({**desk, "kind": "drag", "start_x": 0, "start_y": 0}, SCREEN, 0.0).action == \
+        A.DragTo(start_x=0, start_y=0, x=960, y=540)
+    assert I.translate({**desk, "kind": "hover"}, SCREEN, 0.0).action == A.MoveTo(x=960, y=540)
+    assert I.translate({**desk, "platform": "android", "kind": "hover"}, phone, 0.0) is None
 
 
 # -- the agent `human` in the loop's thread --------------------------------------------------------------------------

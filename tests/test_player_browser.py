@@ -426,3 +426,59 @@ def test_the_page_sends_what_a_person_does(browser):
     finally:
         page.close()
         agent.close()
+
+
+def test_the_page_sends_a_resting_pointer_and_a_phones_gestures_and_buttons(browser):
+    """The mouse at rest a second on a desktop's screen is a MOVE_TO (a menu that opens under the pointer); on a
+    phone's screen a drag is a SWIPE at its speed, a held press a LONG_PRESS, and its system buttons, shown under
+    its screen only, are SYSTEM_BUTTONs."""
+    from jarvis_pytest.devices import actions as A
+    from jarvis_pytest.player.inputs import to_device
+
+    agent = HumanAgent({})
+    agent.reset(TaskContext(task_id="desk-and-phone", instruction="do both", platforms=("ubuntu", "android")))
+    sizes = {"ubuntu": (1920, 1080), "android": (1080, 2400)}
+    loop = Loop(agent, {p: Observation(p, png(*size), *size) for p, size in sizes.items()})
+    page = browser.new_page(viewport=VIEWPORT)
+    errors = page_errors(page)
+    try:
+        page.goto(agent.url)
+        expect(page.get_by_test_id("status")).to_have_attribute("data-state", "turn")
+        expect(page.get_by_test_id("screen")).to_have_attribute("data-platform", "ubuntu")
+        expect(page.get_by_test_id("system-buttons")).to_be_hidden()
+        box = page.get_by_test_id("screen").bounding_box()
+        page.mouse.move(box["x"] + 300, box["y"] + 200, steps=3)
+        page.wait_for_timeout(1500)  # at rest: a hover
+        page.mouse.move(box["x"] + 305, box["y"] + 202)
+        page.wait_for_timeout(1300)  # at rest again, but where it was: nothing
+        page.get_by_test_id("tab-android").click()
+        expect(page.get_by_test_id("screen")).to_have_attribute("data-platform", "android")
+        expect(page.get_by_test_id("system-buttons")).to_be_visible()
+        phone = page.get_by_test_id("screen").bounding_box()
+        px, py = phone["x"] + phone["width"] / 2, phone["y"] + phone["height"] * 0.8
+        page.mouse.move(px, py)
+        page.mouse.down()
+        page.mouse.move(px, py - phone["height"] * 0.5, steps=4)
+        page.mouse.up()
+        page.mouse.move(px, py)
+        page.mouse.down()
+        page.wait_for_timeout(900)
+        page.mouse.up()
+        page.get_by_test_id("button-back").click()
+        page.get_by_test_id("done").click()
+        loop.thread.join(20)
+        got = [(s.platform, s.action) for s in loop.steps]
+        assert [a.type for _, a in got] == ["MOVE_TO", "SWIPE", "LONG_PRESS", "SYSTEM_BUTTON", "DONE"], got
+        hover, (hx, hy) = got[0][1], to_device(300, 200, box["width"], box["height"], 1920, 1080)
+        assert got[0][0] == "ubuntu" and abs(hover.x - hx) <= 1 and abs(hover.y - hy) <= 1  # the box's fractions
+        swipe, press = got[1][1], got[2][1]
+        sx, sy = to_device(px - phone["x"], py - phone["y"], phone["width"], phone["height"], 1080, 2400)
+        tol = 2400 / phone["height"] + 1  # device pixels per displayed pixel: the box's fractions
+        assert got[1][0] == "android" and abs(swipe.x - sx) <= tol and abs(swipe.y - sy) <= tol and abs(swipe.dx) <= tol
+        assert -1250 < swipe.dy < -1150 and 50 <= swipe.duration < 900  # half the phone's height, upwards
+        assert abs(press.x - sx) <= tol and abs(press.y - sy) <= tol and 850 <= press.duration < 3000
+        assert got[3] == ("android", A.SystemButton(button="back"))
+        assert not errors, errors
+    finally:
+        page.close()
+        agent.close()

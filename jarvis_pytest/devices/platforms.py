@@ -77,6 +77,9 @@ class PlatformSpec:
     # Gecko is not packaged), and such a device reaches the drive from its command line
     browser: str | None = None
     file_dialog: FileDialog | None = None
+    # a touch screen: a press held on it is a LONG_PRESS, a drag a SWIPE, it has system buttons (SYSTEM_BUTTON) and
+    # no pointer to rest anywhere (the browser player's inputs, `player/inputs.py`)
+    touch: bool = False
 
     @property
     def sep(self) -> str:
@@ -169,7 +172,7 @@ PLATFORMS: dict[str, PlatformSpec] = {
         name="android", label="Android", device_name="Android phone", screen=(1080, 2400), path_style="posix",
         case_insensitive_paths=False, home="/sdcard", writable_roots=("/sdcard", "/data/local/tmp"),
         transfer_folder="/sdcard/Download/transfer", shell="sh",
-        trash_prefix=".trashed-", user_roots=("/sdcard", "/data/local/tmp")),
+        trash_prefix=".trashed-", user_roots=("/sdcard", "/data/local/tmp"), touch=True),
     "windows": PlatformSpec(
         name="windows", label="Windows", device_name="Windows PC", screen=(1920, 1080), path_style="windows",
         case_insensitive_paths=True, home="C:\\Users\\user", writable_roots=("C:\\Users\\user", "C:\\temp", "S:\\"),

@@ -33,6 +33,7 @@ from typing import Any, Callable
 from jarvis_pytest.agents.protocol import AgentStep, HistoryEntry, TaskContext
 from jarvis_pytest.devices.actions import Fail
 from jarvis_pytest.devices.base import Observation
+from jarvis_pytest.devices.platforms import PLATFORMS
 from jarvis_pytest.errors import ConfigError
 from jarvis_pytest.llm.deadline import remaining
 from jarvis_pytest.player.inputs import Input, InputRefused, describe, merge, translate
@@ -208,6 +209,7 @@ class Player:
             return {
                 "task": None if task is None else {"id": task.task_id, "instruction": task.instruction,
                                                    "platforms": list(task.platforms)},
+                "touch": [] if task is None else [p for p in task.platforms if p in PLATFORMS and PLATFORMS[p].touch],
                 "tasks": self.tasks,
                 "step": self.step,
                 "waiting": self.waiting,

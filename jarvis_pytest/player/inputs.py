@@ -17,6 +17,10 @@ an action here, on the host, so that what a person did is decided in one place t
   (`TEXT_IDLE`). The wheel's turns in one place are one SCROLL (`SCROLL_IDLE`; `PIXELS_PER_NOTCH` pixels of a
   pixel-mode wheel event are one notch). A second click in the same place within `CLICK_IDLE` makes a CLICK with
   clicks=2 (then 3), as the browser counts them (`detail`).
+- **Touch screens** (`PlatformSpec.touch`: Android): a press held `LONG_PRESS_MS` or longer is a LONG_PRESS of that
+  length, a drag is a SWIPE at the drag's own speed, and the page's system buttons (back, home, ...) are
+  SYSTEM_BUTTON. **A pointer at rest** (the page sends `hover` once the mouse rested a second at a new place) is a
+  MOVE_TO on a desktop (menus and tooltips that open under the pointer); a touch screen has no pointer, so nothing.
 """
 
 from __future__ import annotations
@@ -28,8 +32,9 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from jarvis_pytest.devices.actions import (Action, Click, Done, DragTo, Fail, Hotkey, RightClick, Scroll, Typing,
-                                           parse_action)
+from jarvis_pytest.devices.actions import (Action, Click, Done, DragTo, Fail, Hotkey, LongPress, MoveTo, RightClick,
+                                           Scroll, Swipe, Typing, parse_action)
+from jarvis_pytest.devices.platforms import PLATFORMS
 from jarvis_pytest.devices.validate import MAX_SCROLL, MAX_TEXT
 
 TEXT_IDLE = 0.8  # seconds of no typing after which the text typed so far is sent as one TYPING
@@ -39,6 +44,8 @@ NEAR = 8  # device pixels: clicks or wheel turns this close are in the same plac
 PIXELS_PER_NOTCH = 100.0  # a pixel-mode wheel event of this many pixels is one notch (Chromium's step)
 LINES_PER_NOTCH = 3.0  # a line-mode wheel event of this many lines is one notch
 PAGE_NOTCHES = 10  # a page-mode wheel event is this many notches
+LONG_PRESS_MS = 600  # a press held this long on a touch screen is a LONG_PRESS
+GESTURE_MS = (50, 10_000)  # the shortest and longest swipe or long press the player sends (milliseconds)
 
 #: Browser key names (`KeyboardEvent.key`) of keys that type nothing → the device's key names.
 NAMED_KEYS = {"Enter": "enter", "Tab": "tab", "Backspace": "backspace", "Delete": "delete", "Escape": "esc",
@@ -174,19 +181,32 @@ def translate(event: dict[str, Any], size: tuple[int, int] | None, now: float) -
         if not text:
             return None
         return Input(platform, _checked({"type": "TYPING", "text": text}), now, raw, "text", TEXT_IDLE)
+    touch = _touch(platform)
+    if kind == "button":
+        if not touch:
+            raise InputRefused(f"{platform} has no system buttons (only a touch screen's device has)")
+        return Input(platform, _checked({"type": "SYSTEM_BUTTON", "button": event.get("button")}), now, raw)
     if size is None:
         raise InputRefused(f"no screen of {platform} has been shown yet")
+    if kind == "hover":
+        return None if touch else Input(platform, MoveTo(**dict(zip("xy", _point(event, size)))), now, raw)
     if kind == "click":
         button = event.get("button", "left")
         if button not in BUTTONS:
             raise InputRefused(f"`button` must be one of {', '.join(BUTTONS)}, not {button!r}")
         x, y = _point(event, size)
+        held = _number(event, "held_ms", 0)
+        if touch and button == "left" and held >= LONG_PRESS_MS:
+            return Input(platform, LongPress(x=x, y=y, duration=_gesture(held)), now, raw)
         if button == "right":
             return Input(platform, RightClick(x=x, y=y), now, raw)
         return Input(platform, Click(x=x, y=y, button=button), now, raw, "click", CLICK_IDLE)
     if kind == "drag":
         x0, y0 = _point(event, size, "start_")
         x, y = _point(event, size)
+        if touch:
+            return Input(platform, Swipe(x=x0, y=y0, dx=x - x0, dy=y - y0,
+                                         duration=_gesture(_number(event, "held_ms", 300))), now, raw)
         return Input(platform, DragTo(start_x=x0, start_y=y0, x=x, y=y), now, raw)
     if kind == "scroll":
         x, y = _point(event, size)
@@ -197,6 +217,15 @@ def translate(event: dict[str, Any], size: tuple[int, int] | None, now: float) -
         return Input(platform, Scroll(dx=_whole(wheel[0]), dy=_whole(wheel[1]), x=x, y=y), now, raw, "scroll",
                      SCROLL_IDLE, wheel=wheel)
     raise InputRefused(f"unknown input kind {kind!r}")
+
+
+def _touch(platform: str) -> bool:
+    facts = PLATFORMS.get(platform)
+    return facts is not None and facts.touch
+
+
+def _gesture(ms: float) -> int:
+    return int(max(GESTURE_MS[0], min(GESTURE_MS[1], round(ms))))
 
 
 def _checked(fields: dict[str, Any]) -> Action:

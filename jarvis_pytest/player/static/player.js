@@ -7,6 +7,7 @@
 const STATE_MS = 300;   // how often the page asks for the task's state
 const FRAME_MS = 200;   // the pause between two frames of the screen
 const DRAG_PX = 6;      // a press and release this far apart (displayed pixels) is a drag, nearer a click
+const HOVER_MS = 1000;  // the mouse at rest this long at a new place is a hover (the server: MOVE_TO on desktops)
 // Keys that type nothing: sent as key presses (the server's inputs.NAMED_KEYS)
 const NAMED = new Set(["Enter", "Tab", "Backspace", "Delete", "Escape", "ArrowUp", "ArrowDown", "ArrowLeft",
   "ArrowRight", "Home", "End", "PageUp", "PageDown", "Insert", "ContextMenu",
@@ -23,8 +24,10 @@ let platform = null;     // the device tab shown; inputs go to it
 let tasksSeen = -1;
 let seq = null;          // the number of the last event sent (from the server's, so a reload goes on from there)
 let chain = Promise.resolve();
-let press = null;        // the mouse button held: where and which
+let press = null;        // the mouse button held: where, which and since when
 let stopped = false;
+let restTimer = null;    // the hover to send once the mouse rests
+let lastPoint = null;    // the displayed point of the last pointer input sent (a click, a drag's end, a hover)
 
 function headers(extra) {
   return { "X-Player-Token": token, ...(extra || {}) };
@@ -62,28 +65,52 @@ function displayed(e) {
   return { x: e.clientX - r.left, y: e.clientY - r.top, w: r.width, h: r.height };
 }
 
+function restless() {
+  clearTimeout(restTimer);
+  restTimer = null;
+}
 shot.addEventListener("mousedown", (e) => {
   e.preventDefault();
+  restless();
   keys.focus({ preventScroll: true });
-  press = { ...displayed(e), button: e.button };
+  press = { ...displayed(e), button: e.button, at: performance.now() };
 });
 shot.addEventListener("mouseup", (e) => {
   e.preventDefault();
   if (!press || press.button !== e.button) return;
   const at = displayed(e);
   const from = press;
+  const held_ms = Math.round(performance.now() - from.at);
   press = null;
   if (e.button === 0 && Math.hypot(at.x - from.x, at.y - from.y) > DRAG_PX) {
-    send({ kind: "drag", start_x: from.x, start_y: from.y, x: at.x, y: at.y, w: at.w, h: at.h });
+    send({ kind: "drag", start_x: from.x, start_y: from.y, x: at.x, y: at.y, w: at.w, h: at.h, held_ms });
+    lastPoint = at;
   } else {
-    send({ kind: "click", button: BUTTONS[e.button] || "left", x: from.x, y: from.y, w: at.w, h: at.h, detail: e.detail });
+    send({ kind: "click", button: BUTTONS[e.button] || "left", x: from.x, y: from.y, w: at.w, h: at.h, detail: e.detail,
+      held_ms });
+    lastPoint = from;
   }
 });
+// The mouse at rest at a new place, no button held: a hover (the server ignores it on a touch screen).
+shot.addEventListener("mousemove", (e) => {
+  restless();
+  if (press || e.buttons) return;
+  const at = displayed(e);
+  restTimer = setTimeout(() => {
+    restTimer = null;
+    if (lastPoint && Math.hypot(at.x - lastPoint.x, at.y - lastPoint.y) <= DRAG_PX) return;
+    lastPoint = at;
+    send({ kind: "hover", x: at.x, y: at.y, w: at.w, h: at.h });
+  }, HOVER_MS);
+});
+shot.addEventListener("mouseleave", restless);
 shot.addEventListener("contextmenu", (e) => e.preventDefault());
 shot.addEventListener("dragstart", (e) => e.preventDefault());
 shot.addEventListener("wheel", (e) => {
   e.preventDefault();
+  restless();
   const at = displayed(e);
+  lastPoint = at;
   send({ kind: "scroll", x: at.x, y: at.y, w: at.w, h: at.h, dx: e.deltaX, dy: e.deltaY, mode: e.deltaMode });
 }, { passive: false });
 
@@ -107,6 +134,9 @@ keys.addEventListener("compositionend", takeText);
 keys.addEventListener("focus", () => screenBox.classList.add("focused"));
 keys.addEventListener("blur", () => screenBox.classList.remove("focused"));
 
+for (const b of document.querySelectorAll("#system-buttons button")) {
+  b.addEventListener("click", () => { send({ kind: "button", button: b.dataset.button }); keys.focus({ preventScroll: true }); });
+}
 $("done").addEventListener("click", () => send({ kind: "done" }));
 $("fail").addEventListener("click", () => send({ kind: "fail" }));
 $("combo-form").addEventListener("submit", (e) => {
@@ -155,6 +185,8 @@ function renderTabs(platforms) {
     b.addEventListener("click", () => { platform = p; renderTabs(platforms); keys.focus({ preventScroll: true }); });
     return b;
   }));
+  // a touch screen's system buttons, under its screen only
+  $("system-buttons").hidden = !(state && state.touch && state.touch.includes(platform));
 }
 
 function render(s) {
@@ -201,6 +233,7 @@ async function poll() {
       if (seq === null) seq = s.last_seq;
       state = s;
       render(s);
+      $("system-buttons").hidden = !(s.touch && s.touch.includes(platform));
       misses = 0;
     } catch (e) {
       misses += 1;
