@@ -66,6 +66,9 @@ def test_the_transfer_goes_through_the_drives_web_page_where_a_browser_is_and_a_
     assert any("chromium" in t and "transfer:5244/data/" in t for t in typed(browser))
     assert not any("curl" in t or "S:\\" in t for t in typed(browser))
     names = [s.target.control.name for s in browser if s.target is not None and s.target.control is not None]
+    dialog = spec("ubuntu").file_dialog  # GTK's dialog is in no accessibility tree: awaited by its title on screen
+    seen = [s.target.screen_text for s in browser if s.type == "WAIT_FOR" and s.target.screen_text is not None]
+    assert seen == ([dialog.open_title] if browser is on_source else [dialog.save_title, dialog.save_title])
     if browser is on_source:  # the upload form: the file chosen, sent, and the drive's answer awaited
         assert "{{transferred_file}}" in typed(browser)
         assert names[-3:] == ["Choose Files: {{transferred_file.name}}", "start upload", "return to*"]

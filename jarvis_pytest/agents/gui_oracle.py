@@ -25,6 +25,7 @@ minimise it).
 from __future__ import annotations
 
 import re
+import shutil
 import time
 from dataclasses import dataclass, replace
 from typing import Any, Callable, Iterator, Sequence
@@ -151,6 +152,8 @@ def describe_target(target: Any) -> str:
         parts.append(f"a control ({what})")
     if target.text is not None:
         parts.append(f"the text {target.text!r}")
+    if getattr(target, "screen_text", None) is not None:
+        parts.append(f"the text {target.screen_text!r} on the screen image")
     if target.window is not None:
         parts.append(("in " if parts else "") + f"the window {target.window!r}")
     if target.index:
@@ -159,16 +162,49 @@ def describe_target(target: Any) -> str:
 
 
 class A11yView:
-    """What the GUI oracle is given of one device: its accessibility tree, and nothing else of it."""
+    """What the GUI oracle is given of one device: its accessibility tree and its screen image, nothing else."""
 
-    __slots__ = ("_read",)
+    __slots__ = ("_read", "_shot")
 
     def __init__(self, device: Any):
         self._read: Callable[[], dict] = lambda: device.a11y_tree(max_nodes=TREE_NODES, timeout=TREE_TIMEOUT)
+        self._shot: Callable[[], bytes] = lambda: device.observe().screenshot_png
 
     def tree(self) -> dict:
         """`{"tree": {...}, "truncated": bool, ...}` as the device's `/a11y` answers."""
         return self._read()
+
+    def screenshot(self) -> bytes:
+        """The screen now (PNG), as an agent's observation has it."""
+        return self._shot()
+
+
+class ScreenWords:
+    """A view whose "tree" is the words of the screen image (`screen_text.read_words`), for `poll_tree`."""
+
+    __slots__ = ("view",)
+
+    def __init__(self, view: A11yView):
+        self.view = view
+
+    def tree(self) -> dict:
+        from jarvis_pytest.agents.screen_text import read_words
+
+        return {"tree": {"words": read_words(self.view.screenshot())}}
+
+
+def find_screen_text(words: Sequence[Any], target: Any,
+                     screen: tuple[int, int] | None = None) -> tuple[dict | None, str | None]:
+    """The `index`-th run of words on one line (`screen_text.runs`) that shows `target.screen_text`, as a node
+    (`role` "screen text", its `name` what was read, its `box`); (None, None) when none does."""
+    from jarvis_pytest.agents.screen_text import runs
+
+    found = [(text, box) for text, box in runs(words) if text_matches(target.screen_text, text)
+             and visible_box(box, screen) is not None]
+    if len(found) <= target.index:
+        return None, None
+    text, box = found[target.index]
+    return {"role": "screen text", "name": text, "box": box}, None
 
 
 @dataclass(frozen=True)
@@ -220,14 +256,17 @@ def await_target(view: A11yView, target: Any, timeout: float, *, gone: bool = Fa
     person waits for a dialog or bubble to stop moving before clicking into it; when the timeout passes while it
     still moves, the last box is taken."""
     last: list[Any] = [None]
+    on_image = getattr(target, "screen_text", None) is not None
 
     def judge(tree: dict) -> tuple[bool, tuple[dict | None, str | None]]:
-        node, title = find_target(tree, target, screen)
+        node, title = (find_screen_text(tree.get("words", []), target, screen) if on_image
+                       else find_target(tree, target, screen))
         moving = settled and node is not None and node.get("box") != last[0]
         last[0] = None if node is None else node.get("box")
         return (node is None) == gone and not moving, (node, title)
 
-    done, value, reads, truncated, seconds = poll_tree(view, judge, timeout, clock=clock, sleep=sleep)
+    source = ScreenWords(view) if on_image else view
+    done, value, reads, truncated, seconds = poll_tree(source, judge, timeout, clock=clock, sleep=sleep)
     node, title = value or (None, None)
     if not done and not (gone or (settled and node is not None)):  # it did not show
         node, title = None, None
@@ -553,6 +592,10 @@ def brief_gui(agent: GuiOracleAgent, subtasks: Sequence[Any], devices: dict[str,
     """Hand `agent` (exactly a GuiOracleAgent: `oracle.brief` checked) the task's GUI plan and the devices'
     accessibility views."""
     plan, why = gui_plan(subtasks, backends, windows)
+    if why is None and shutil.which("tesseract") is None and any(
+            item.step.target is not None and item.step.target.screen_text is not None for item in plan):
+        why = ("the GUI solution reads text off the screen (`screen_text`) with Tesseract, which is not installed "
+               "on this host: apt-get install tesseract-ocr (or make host-packages)")
     agent.queue = plan
     agent.views = {platform: A11yView(device) for platform, device in devices.items()}
     agent.briefed = True if why is None else why

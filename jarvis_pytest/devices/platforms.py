@@ -21,13 +21,15 @@ SHELL_TITLE = "jarvis-shell"  # the title of a command line a GUI solution opens
 class FileDialog:
     """How a person drives the desktop's file dialog from the keyboard, as a browser shows it (a web page's "Choose
     Files", "Save link as…"): GTK's chooser on Ubuntu. Chromium loads no GTK accessibility bridge, so the dialog is
-    not in the accessibility tree: it is given `shows_within` seconds to show, and what it did is read from the page
-    after it closed."""
+    not in the accessibility tree: it is awaited by its title read off the screen image (`screen_text`), and what
+    it did is read from the page after it closed."""
 
     type_path: tuple[str, ...]   # in an Open dialog: shows the field that takes a typed path
     open: tuple[str, ...]        # the Open button (its mnemonic; Return in the typed path does not press it)
     save: tuple[str, ...]        # the Save button; the name field has the keyboard and takes a whole path
-    shows_within: float = 3.0
+    open_title: str = "Open File*"  # the dialogs' titles, as the window manager draws them ("Open Files" for a
+    save_title: str = "Save File"   # form that takes several)
+    shows_within: float = 20.0      # seconds a dialog gets to show
 
 
 @dataclass(frozen=True)

@@ -172,13 +172,20 @@ class GuiTarget(_Strict):
     control: GuiControl | None = None
     text: str | None = Field(default=None, min_length=1, description="text shown on screen: a node's name or text, "
                              "whole (case-insensitive), or a pattern with `*`")
+    screen_text: str | None = Field(default=None, min_length=1, description="text read off the screen image (OCR) "
+                                    "where no accessibility tree shows it (a title the window manager draws, "
+                                    "Chromium's GTK file dialog): words on one line, matched as `text` is")
     index: int = Field(default=0, ge=0, le=100)
 
     @model_validator(mode="after")
     def _one_thing(self) -> "GuiTarget":
         if self.control is not None and self.text is not None:
             raise FixedValueError("a target names both a `control` and a `text`", "keep one of them")
-        if self.control is None and self.text is None and self.window is None:
+        if self.screen_text is not None and (self.control is not None or self.text is not None
+                                             or self.window is not None):
+            raise FixedValueError("a target names `screen_text` and something of the accessibility tree",
+                                  "keep `screen_text` alone: it is read off the screen image, not the tree")
+        if self.control is None and self.text is None and self.window is None and self.screen_text is None:
             raise FixedValueError("a target names nothing", "give a `control` or a `text`, or a `window`")
         return self
 

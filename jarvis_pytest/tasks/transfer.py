@@ -106,7 +106,8 @@ def _browser_upload(platform: str) -> list[dict]:
     return [*_open_drive_page(facts, "open the drive's web page"),
             _step(platform, "WAIT_FOR", target=choose, timeout=60, note="the page with its upload form"),
             _step(platform, "CLICK", target=choose),
-            _step(platform, "WAIT", seconds=dialog.shows_within, note="the file dialog"),
+            _step(platform, "WAIT_FOR", target={"screen_text": dialog.open_title}, timeout=dialog.shows_within,
+                  note="the file dialog, by its title on the screen (it is in no accessibility tree)"),
             _step(platform, "HOTKEY", keys=list(dialog.type_path)),
             _step(platform, "TYPING", text=f"{{{{{TRANSFER_INPUT}}}}}"),
             _step(platform, "HOTKEY", keys=list(dialog.open)),
@@ -131,11 +132,14 @@ def _browser_download(platform: str) -> list[dict]:
             _step(platform, "WAIT_FOR", target=link, timeout=60, note="the file's link in the drive's folder"),
             _step(platform, "RIGHT_CLICK", target=link),
             _step(platform, "CLICK", target=save_as),
-            _step(platform, "WAIT", seconds=dialog.shows_within, note="the file dialog"),
+            _step(platform, "WAIT_FOR", target={"screen_text": dialog.save_title}, timeout=dialog.shows_within,
+                  note="the file dialog, by its title on the screen (it is in no accessibility tree)"),
             _step(platform, "HOTKEY", keys=["ctrl", "a"], note="the suggested name, replaced by the whole path"),
             _step(platform, "TYPING", text=f"{{{{{TRANSFER_OUTPUT}}}}}"),
             _step(platform, "HOTKEY", keys=list(dialog.save), note="download from the network drive"),
-            _step(platform, "WAIT", seconds=5, note="the download is written")]
+            _step(platform, "WAIT_FOR", target={"screen_text": dialog.save_title}, gone=True,
+                  timeout=dialog.shows_within, note="the dialog closed: Chromium saves the file"),
+            _step(platform, "WAIT", seconds=3, note="the download is written")]
 
 
 def is_transfer(template_id: str) -> bool:
