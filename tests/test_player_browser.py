@@ -24,6 +24,7 @@ import subprocess
 import sys
 import threading
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -362,21 +363,31 @@ class Loop:
                 return
 
 
-def test_the_page_sends_what_a_person_does(browser):
-    from jarvis_pytest.devices import actions as A
-    from jarvis_pytest.player.inputs import to_device
-
+@contextmanager
+def playing(browser, sizes: dict[str, tuple[int, int]]):
+    """The player's page on a task of `sizes`' devices (platform → screen size, the first shown first), each
+    showing a plain screen, with the step loop asking the agent `human` for steps: (the loop, the page, the
+    page's errors), once the page shows the first device's screen and says it is the person's turn."""
     agent = HumanAgent({})
-    agent.reset(TaskContext(task_id="two-devices", instruction="do both", platforms=("ubuntu", "windows")))
-    shots = {"ubuntu": png(1920, 1080), "windows": png(1280, 800)}
-    loop = Loop(agent, {p: Observation(p, shot, *(1920, 1080) if p == "ubuntu" else (1280, 800))
-                        for p, shot in shots.items()})
+    agent.reset(TaskContext(task_id="on-the-page", instruction="do both", platforms=tuple(sizes)))
+    loop = Loop(agent, {p: Observation(p, png(*size), *size) for p, size in sizes.items()})
     page = browser.new_page(viewport=VIEWPORT)
     errors = page_errors(page)
     try:
         page.goto(agent.url)
         expect(page.get_by_test_id("status")).to_have_attribute("data-state", "turn")
-        expect(page.get_by_test_id("screen")).to_have_attribute("data-platform", "ubuntu")
+        expect(page.get_by_test_id("screen")).to_have_attribute("data-platform", next(iter(sizes)))
+        yield loop, page, errors
+    finally:
+        page.close()
+        agent.close()
+
+
+def test_the_page_sends_what_a_person_does(browser):
+    from jarvis_pytest.devices import actions as A
+    from jarvis_pytest.player.inputs import to_device
+
+    with playing(browser, {"ubuntu": (1920, 1080), "windows": (1280, 800)}) as (loop, page, errors):
         box = page.get_by_test_id("screen").bounding_box()
 
         def at(x: int, y: int, screen=(1920, 1080), box=box):  # a page point → the device pixel it must make
@@ -423,9 +434,6 @@ def test_the_page_sends_what_a_person_does(browser):
         expect(page.get_by_test_id("status")).to_have_attribute("data-state", "ended")
         expect(page.get_by_test_id("log")).to_contain_text("#9 windows: CLICK")
         assert not errors, errors
-    finally:
-        page.close()
-        agent.close()
 
 
 def test_the_page_sends_a_resting_pointer_and_a_phones_gestures_and_buttons(browser):
@@ -435,16 +443,7 @@ def test_the_page_sends_a_resting_pointer_and_a_phones_gestures_and_buttons(brow
     from jarvis_pytest.devices import actions as A
     from jarvis_pytest.player.inputs import to_device
 
-    agent = HumanAgent({})
-    agent.reset(TaskContext(task_id="desk-and-phone", instruction="do both", platforms=("ubuntu", "android")))
-    sizes = {"ubuntu": (1920, 1080), "android": (1080, 2400)}
-    loop = Loop(agent, {p: Observation(p, png(*size), *size) for p, size in sizes.items()})
-    page = browser.new_page(viewport=VIEWPORT)
-    errors = page_errors(page)
-    try:
-        page.goto(agent.url)
-        expect(page.get_by_test_id("status")).to_have_attribute("data-state", "turn")
-        expect(page.get_by_test_id("screen")).to_have_attribute("data-platform", "ubuntu")
+    with playing(browser, {"ubuntu": (1920, 1080), "android": (1080, 2400)}) as (loop, page, errors):
         expect(page.get_by_test_id("system-buttons")).to_be_hidden()
         box = page.get_by_test_id("screen").bounding_box()
         page.mouse.move(box["x"] + 300, box["y"] + 200, steps=3)
@@ -479,6 +478,3 @@ def test_the_page_sends_a_resting_pointer_and_a_phones_gestures_and_buttons(brow
         assert abs(press.x - sx) <= tol and abs(press.y - sy) <= tol and 850 <= press.duration < 3000
         assert got[3] == ("android", A.SystemButton(button="back"))
         assert not errors, errors
-    finally:
-        page.close()
-        agent.close()
