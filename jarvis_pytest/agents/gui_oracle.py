@@ -31,6 +31,7 @@ from dataclasses import dataclass, replace
 from typing import Any, Callable, Iterator, Sequence
 
 from jarvis_pytest.agents.protocol import AgentStep, HistoryEntry, TaskContext
+from jarvis_pytest.agents.screen_text import read_words, runs
 from jarvis_pytest.devices.actions import Click, Done, Fail, Wait
 from jarvis_pytest.devices.base import Observation
 from jarvis_pytest.devices.control_http import title_matches
@@ -152,7 +153,7 @@ def describe_target(target: Any) -> str:
         parts.append(f"a control ({what})")
     if target.text is not None:
         parts.append(f"the text {target.text!r}")
-    if getattr(target, "screen_text", None) is not None:
+    if target.screen_text is not None:
         parts.append(f"the text {target.screen_text!r} on the screen image")
     if target.window is not None:
         parts.append(("in " if parts else "") + f"the window {target.window!r}")
@@ -188,8 +189,6 @@ class ScreenWords:
         self.view = view
 
     def tree(self) -> dict:
-        from jarvis_pytest.agents.screen_text import read_words
-
         return {"tree": {"words": read_words(self.view.screenshot())}}
 
 
@@ -197,8 +196,6 @@ def find_screen_text(words: Sequence[Any], target: Any,
                      screen: tuple[int, int] | None = None) -> tuple[dict | None, str | None]:
     """The `index`-th run of words on one line (`screen_text.runs`) that shows `target.screen_text`, as a node
     (`role` "screen text", its `name` what was read, its `box`); (None, None) when none does."""
-    from jarvis_pytest.agents.screen_text import runs
-
     found = [(text, box) for text, box in runs(words) if text_matches(target.screen_text, text)
              and visible_box(box, screen) is not None]
     if len(found) <= target.index:
@@ -256,7 +253,7 @@ def await_target(view: A11yView, target: Any, timeout: float, *, gone: bool = Fa
     person waits for a dialog or bubble to stop moving before clicking into it; when the timeout passes while it
     still moves, the last box is taken."""
     last: list[Any] = [None]
-    on_image = getattr(target, "screen_text", None) is not None
+    on_image = target.screen_text is not None
 
     def judge(tree: dict) -> tuple[bool, tuple[dict | None, str | None]]:
         node, title = (find_screen_text(tree.get("words", []), target, screen) if on_image
