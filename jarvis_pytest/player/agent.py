@@ -33,10 +33,9 @@ from typing import Any, Callable
 from jarvis_pytest.agents.protocol import AgentStep, HistoryEntry, TaskContext
 from jarvis_pytest.devices.actions import Fail
 from jarvis_pytest.devices.base import Observation
-from jarvis_pytest.devices.platforms import PLATFORMS
 from jarvis_pytest.errors import ConfigError
 from jarvis_pytest.llm.deadline import remaining
-from jarvis_pytest.player.inputs import Input, InputRefused, describe, merge, translate
+from jarvis_pytest.player.inputs import Input, InputRefused, describe, is_touch, merge, translate
 
 FRAME_CACHE = 0.15  # seconds a live frame is reused for another request of the page
 # seconds without a request of the page (after its first) that end the task as the person's FAIL: the tab was
@@ -165,9 +164,8 @@ class Player:
         seq = event.get("seq")
         with self.cond:
             self.seen = time.monotonic()
-        if isinstance(seq, bool) or not isinstance(seq, int):
-            raise InputRefused("an event needs its sequence number `seq` (an integer)")
-        with self.cond:
+            if isinstance(seq, bool) or not isinstance(seq, int):
+                raise InputRefused("an event needs its sequence number `seq` (an integer)")
             if self.task is None:
                 raise NotTaking("no task has started yet")
             if self.ending is not None:
@@ -209,7 +207,7 @@ class Player:
             return {
                 "task": None if task is None else {"id": task.task_id, "instruction": task.instruction,
                                                    "platforms": list(task.platforms)},
-                "touch": [] if task is None else [p for p in task.platforms if p in PLATFORMS and PLATFORMS[p].touch],
+                "touch": [] if task is None else [p for p in task.platforms if is_touch(p)],
                 "tasks": self.tasks,
                 "step": self.step,
                 "waiting": self.waiting,

@@ -181,7 +181,7 @@ def translate(event: dict[str, Any], size: tuple[int, int] | None, now: float) -
         if not text:
             return None
         return Input(platform, _checked({"type": "TYPING", "text": text}), now, raw, "text", TEXT_IDLE)
-    touch = _touch(platform)
+    touch = is_touch(platform)
     if kind == "button":
         if not touch:
             raise InputRefused(f"{platform} has no system buttons (only a touch screen's device has)")
@@ -219,7 +219,8 @@ def translate(event: dict[str, Any], size: tuple[int, int] | None, now: float) -
     raise InputRefused(f"unknown input kind {kind!r}")
 
 
-def _touch(platform: str) -> bool:
+def is_touch(platform: str) -> bool:
+    """Whether `platform`'s screen is a touch screen (`PlatformSpec.touch`)."""
     facts = PLATFORMS.get(platform)
     return facts is not None and facts.touch
 

@@ -185,7 +185,11 @@ function renderTabs(platforms) {
     b.addEventListener("click", () => { platform = p; renderTabs(platforms); keys.focus({ preventScroll: true }); });
     return b;
   }));
-  // a touch screen's system buttons, under its screen only
+  showSystemButtons();
+}
+
+// a touch screen's system buttons, under its screen only
+function showSystemButtons() {
   $("system-buttons").hidden = !(state && state.touch && state.touch.includes(platform));
 }
 
@@ -233,7 +237,7 @@ async function poll() {
       if (seq === null) seq = s.last_seq;
       state = s;
       render(s);
-      $("system-buttons").hidden = !(s.touch && s.touch.includes(platform));
+      showSystemButtons();
       misses = 0;
     } catch (e) {
       misses += 1;
