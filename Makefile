@@ -35,9 +35,10 @@ images: engine
 
 ## host-packages: Debian packages the harness and tests use on the host (chromium for the dashboard's browser
 ## tests; adb for Android devices; mksh and toybox, Android's shell and tools, for the adb escaping tests;
-## tesseract for GUI solutions that read text off the screen image)
+## tesseract for GUI solutions that read text off the screen image; faketime for the test that sets the host's clock
+## years ahead to show that devices do not drift with it)
 host-packages:
-	@missing=""; for c in chromium adb mksh toybox tesseract:tesseract-ocr; do command -v $${c%%:*} >/dev/null || missing="$$missing $${c#*:}"; done; \
+	@missing=""; for c in chromium adb mksh toybox tesseract:tesseract-ocr faketime; do command -v $${c%%:*} >/dev/null || missing="$$missing $${c#*:}"; done; \
 	if [ -n "$$missing" ]; then \
 	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
 	    apt-get -o DPkg::Lock::Timeout=600 update -q >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 install -y -q $$missing >/dev/null; \

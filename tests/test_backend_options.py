@@ -292,6 +292,9 @@ def test_each_backend_says_what_its_device_is():
           "0xedb\r\n")
     assert W.describe_vm(_Said(vm)) == "Windows 10 Professional 22H2 (build 19045.3803)"
     assert A.describe(_Said("13\n33\nsdk_gphone64_x86_64\n")) == "Android 13 (API 33), sdk_gphone64_x86_64"
+    fingerprint = "google/sdk_gphone64_x86_64/emu64xa:13/TE1A.220922.034/10940250:userdebug/dev-keys"
+    assert A.describe(_Said(f"13\n33\nsdk_gphone64_x86_64\n{fingerprint}\n")) == \
+        f"Android 13 (API 33), sdk_gphone64_x86_64, build {fingerprint}"
     for backend in (U.BACKEND, W.WINE, W.KVM, A.EMULATOR, A.ATTACH):
         assert backend.describe is not None, backend.label
 

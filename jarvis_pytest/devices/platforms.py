@@ -82,6 +82,11 @@ class PlatformSpec:
     # a touch screen: a press held on it is a LONG_PRESS, a drag a SWIPE, it has system buttons (SYSTEM_BUTTON) and
     # no pointer to rest anywhere (the browser player's inputs, `player/inputs.py`)
     touch: bool = False
+    # who the device is, the same on any host: its container's hostname (shown in a terminal's title and prompt, a
+    # drive page's title), its time zone and locale (the `TZ`, `LANG` and `LC_ALL` it starts with; never the host's)
+    hostname: str = "device"
+    timezone: str = "Etc/UTC"
+    locale: str = "C.UTF-8"
 
     @property
     def sep(self) -> str:
@@ -174,12 +179,12 @@ PLATFORMS: dict[str, PlatformSpec] = {
         name="android", label="Android", device_name="Android phone", screen=(1080, 2400), path_style="posix",
         case_insensitive_paths=False, home="/sdcard", writable_roots=("/sdcard", "/data/local/tmp"),
         transfer_folder="/sdcard/Download/transfer", shell="sh",
-        trash_prefix=".trashed-", user_roots=("/sdcard", "/data/local/tmp"), touch=True),
+        trash_prefix=".trashed-", user_roots=("/sdcard", "/data/local/tmp"), touch=True, hostname="android-phone"),
     "windows": PlatformSpec(
         name="windows", label="Windows", device_name="Windows PC", screen=(1920, 1080), path_style="windows",
         case_insensitive_paths=True, home="C:\\Users\\user", writable_roots=("C:\\Users\\user", "C:\\temp", "S:\\"),
         transfer_folder="C:\\Users\\user\\Downloads\\transfer", drive_root="S:\\", shell="cmd",
-        text_codepage="cp1252",
+        text_codepage="cp1252", hostname="windows-pc",
         file_facts="windows_probe", hidden_by="attributes", trash="$Recycle.Bin",
         shell_files=("desktop.ini", "thumbs.db"), user_roots=("C:\\Users", "C:\\temp", "S:\\"),
         # Wine's desktop: its taskbar's Start button, bottom left, opens a menu whose last item is Run...; win+r does
@@ -200,7 +205,7 @@ PLATFORMS: dict[str, PlatformSpec] = {
     "ubuntu": PlatformSpec(
         name="ubuntu", label="Ubuntu", device_name="Ubuntu desktop", screen=(1920, 1080), path_style="posix",
         case_insensitive_paths=False, home="/home/user", writable_roots=("/home/user", "/tmp"),
-        transfer_folder="/tmp/transfer", shell="bash", desktop_user="user",
+        transfer_folder="/tmp/transfer", shell="bash", desktop_user="user", hostname="ubuntu-desktop",
         trash="/home/user/.local/share/Trash", user_roots=("/home/user", "/tmp", "/var/tmp", "/dev/shm"),
         # XFCE's keyboard shortcut for the terminal; its window shows before its shell's prompt and before it has the
         # keyboard: the prompt awaited, the terminal clicked. (Its text in AT-SPI lags behind the screen: the window

@@ -320,7 +320,7 @@ class Lifecycle:
                                          "the renewed transfer drive")
                     check_empty(drive)
                     return
-                options = dict(self.server.container_options)
+                options = {**self.server.container_options, "hostname": TRANSFER_ALIAS}  # not Docker's random id
                 if drive_volume is not None:  # the drive's storage, shared with devices that mount it (S: on Windows)
                     options["volumes"] = {drive_volume.name: {"bind": self.server.storage, "mode": "rw"}}
                     tmpfs = {k: v for k, v in options.get("tmpfs", {}).items() if k != self.server.storage}

@@ -110,11 +110,14 @@ def attach_unavailable(serial: str | None = None) -> str | None:
 
 
 def describe(device: AdbDevice) -> str:
-    """What the device is, as Android says: e.g. `Android 13 (API 33), sdk_gphone64_x86_64`."""
-    out = device.run("getprop ro.build.version.release; getprop ro.build.version.sdk; getprop ro.product.model",
-                     timeout=20).stdout.splitlines()
-    release, sdk, model = (out + ["", "", ""])[:3]
-    return f"Android {release.strip() or '?'} (API {sdk.strip() or '?'}), {model.strip() or 'unknown model'}"
+    """What the device is, as Android says: e.g. `Android 13 (API 33), sdk_gphone64_x86_64, build
+    google/sdk_gphone64_x86_64/emu64xa:13/TE1A.220922.034/10940250:userdebug/dev-keys` (its build fingerprint, where
+    it has one)."""
+    out = device.run("getprop ro.build.version.release; getprop ro.build.version.sdk; getprop ro.product.model; "
+                     "getprop ro.build.fingerprint", timeout=20).stdout.splitlines()
+    release, sdk, model, fingerprint = (out + ["", "", "", ""])[:4]
+    text = f"Android {release.strip() or '?'} (API {sdk.strip() or '?'}), {model.strip() or 'unknown model'}"
+    return text + (f", build {fingerprint.strip()}" if fingerprint.strip() else "")
 
 
 class EmulatorBackend(Backend):
