@@ -253,6 +253,6 @@ def test_preflight_probes_both_models_at_once(monkeypatch):
         agent = load_agent("holo2", options(server))
         both = threading.Barrier(2, timeout=10)
         for client in (agent.planner, agent.grounder.client):
-            monkeypatch.setattr(client, "probe", lambda real=client.probe: (both.wait(), real())[1])
+            monkeypatch.setattr(client, "probe", lambda real=client.probe, **kw: (both.wait(), real(**kw))[1])
         agent.preflight()
     assert sorted(r.model for r in server.requests) == ["grounder", "planner"]

@@ -246,6 +246,8 @@ class Grounder:
 
     def __init__(self, client: ChatClient):
         self.client = client
+        self.overrides: dict[str, Any] = {}  # sampling parameters the run set (`--agent-option grounder_*`)
+        self.call_params: dict[str, Any] = {}  # per task and trial: its seed (set by the agent's reset)
 
     # -- what a subclass provides --------------------------------------------------------------------------------
     def messages(self, instruction: str, image: dict[str, Any], size: tuple[int, int],
@@ -254,7 +256,17 @@ class Grounder:
         raise NotImplementedError
 
     def request_params(self) -> dict[str, Any]:
-        return dict(self.params)
+        """Every request's parameters: the adapter's `params`, the run's sampling overrides, the trial's seed."""
+        return {**self.params, **self.overrides, **self.call_params}
+
+    @classmethod
+    def model_input(cls) -> dict[str, Any]:
+        """How a screenshot reaches the model, for the run card: its encoding and, per platform, the size it is sent
+        at for the platform's default screen."""
+        from jarvis_pytest.devices.platforms import PLATFORMS
+
+        sent = {p: list(cls.resize.size(*f.screen) if cls.resize else f.screen) for p, f in PLATFORMS.items()}
+        return {"encoding": "PNG", "screen": {p: list(f.screen) for p, f in PLATFORMS.items()}, "sent": sent}
 
     # -- shared logic --------------------------------------------------------------------------------------------
     def parse(self, text: str) -> tuple[float, float]:

@@ -196,15 +196,16 @@ class ChatClient:
         finally:
             self._semaphore.release()
 
-    def probe(self, timeout: float | None = None) -> None:
+    def probe(self, timeout: float | None = None, extra: dict[str, Any] | None = None) -> None:
         """One minimal real request (a one-token completion) proving the endpoint, the model name and the key;
         a ConfigError that says which is wrong otherwise. Run once at start-up, before any device boots. It
         ends within `timeout` seconds of wall-clock time (default: PROBE_SECONDS, or the endpoint's timeout when
-        shorter), however slowly the server answers."""
+        shorter), however slowly the server answers. `extra` are request fields every later call sends (a
+        `seed`): a server that refuses one of them says so now, named in the error."""
         timeout = min(PROBE_SECONDS, self.timeout) if timeout is None else float(timeout)
         url = f"{self.base_url}/chat/completions"
         body = {"model": self.model, "max_tokens": 1, "temperature": 0,
-                "messages": [{"role": "user", "content": "Reply with OK."}]}
+                "messages": [{"role": "user", "content": "Reply with OK."}], **(extra or {})}
         try:
             with deadline_at(time.monotonic() + timeout):
                 resp = self._post(url, body, timeout)
@@ -236,6 +237,11 @@ class ChatClient:
             raise ConfigError(f"{url} refused the API key (HTTP {resp.status_code}: {_snippet(resp)})",
                               field="api_key", fix="check the key (--planner-api-key / --grounder-api-key or "
                               "JARVIS_*_API_KEY) and that it may use this model")
+        refused = [k for k in extra or {} if k in text] if resp.status_code in (400, 422) else []
+        if refused:
+            raise ConfigError(f"{url} refused the request field {refused[0]!r} (HTTP {resp.status_code}: "
+                              f"{_snippet(resp)})", field=refused[0],
+                              fix=f"pass --agent-option {refused[0]}=none (the run then sends no {refused[0]})")
         if resp.status_code == 404 or "model" in text:
             raise ConfigError(f"{url} does not serve model {self.model!r} (HTTP {resp.status_code}: "
                               f"{_snippet(resp)})", field="model", fix="check the model name (--planner-model / "

@@ -35,12 +35,13 @@ SECRET_WORDS = ("key", "token", "secret", "password")
 
 
 def redact(options: dict[str, Any]) -> dict[str, Any]:
-    """`options` with every secret-looking value replaced by "***" (nested dicts included)."""
+    """`options` with every secret-looking value replaced by "***" (nested dicts included); a count of tokens
+    (`max_tokens`) is no secret."""
     out: dict[str, Any] = {}
     for key, value in options.items():
         if isinstance(value, dict):
             out[key] = redact(value)
-        elif any(word in str(key).lower() for word in SECRET_WORDS):
+        elif any(word in str(key).lower() for word in SECRET_WORDS) and not str(key).lower().endswith("_tokens"):
             out[key] = "***" if value else value
         else:
             out[key] = value
@@ -93,8 +94,9 @@ class PlannerGrounderAgent:
     """A planner model that decides the step and a grounding model that finds the element (see module doc)."""
 
     def __init__(self, name: str, planner: ChatClient, grounder: Grounder, *, planner_params: dict | None = None,
-                 swipe_fraction: float = 0.3, public_config: dict[str, Any] | None = None):
+                 swipe_fraction: float = 0.3, public_config: dict[str, Any] | None = None, seed: str = "derived"):
         self.name = name
+        self.seed_mode = seed
         self.planner = planner
         self.grounder = grounder
         self.planner_params = dict(planner_params or {})
@@ -110,9 +112,11 @@ class PlannerGrounderAgent:
         first). Both requests are in flight together: start-up waits for the slower model, not for the sum."""
         from concurrent.futures import ThreadPoolExecutor
 
+        seed = {} if self.seed_mode == "none" else {"seed": 0}  # a server that refuses seeds says so now
+
         def probe(client: Any) -> ConfigError | None:
             try:
-                client.probe()
+                client.probe(extra=seed)
             except ConfigError as exc:
                 return exc
             return None
@@ -127,6 +131,13 @@ class PlannerGrounderAgent:
 
     def reset(self, task: TaskContext) -> None:
         self.task = task
+        self.grounder.call_params = self._seed()
+
+    def _seed(self) -> dict[str, Any]:
+        """`{"seed": N}` for every request of this task and trial (`TaskContext.seed`), unless seeds are off."""
+        if self.seed_mode == "none" or self.task is None or self.task.seed is None:
+            return {}
+        return {"seed": self.task.seed}
 
     def config(self) -> dict[str, Any]:
         return redact(self._config)
@@ -150,7 +161,8 @@ class PlannerGrounderAgent:
                 {"role": "user", "content": parts}]
 
     def act(self, observations: dict[str, Observation], history: list[HistoryEntry]) -> AgentStep:
-        result = self.planner.chat(self.planner_messages(observations, history), **self.planner_params)
+        result = self.planner.chat(self.planner_messages(observations, history), **self.planner_params,
+                                   **self._seed())
         trace = _Trace(raw=result.text, model_seconds=result.seconds)
         _add_usage(trace.usage, result.usage, "planner")
         try:
@@ -212,26 +224,89 @@ def _option(options: dict[str, Any], name: str, kind: type, default: Any) -> Any
                           fix=f"pass e.g. --agent-option {name}={default}") from None
 
 
+SAMPLING = {"temperature": (float, 0.0), "top_p": (float, 1.0)}  # name → (type, default): sent on every call
+PLANNER_MAX_TOKENS = 2048
+SEED_MODES = ("derived", "none")
+
+
+def _sampling(options: dict[str, Any], role: str, defaults: dict[str, Any]) -> dict[str, Any]:
+    """The sampling parameters of `role`'s requests: `defaults`, each overridable by `--agent-option
+    <role>_<name>=VALUE`; every one of them is sent on every call (a server's own default never decides)."""
+    params = dict(defaults)
+    for name, value in defaults.items():
+        given = options.get(f"{role}_{name}")
+        if given not in (None, ""):
+            params[name] = _option(options, f"{role}_{name}", type(value) if value is not None else float, value)
+    for name in ("temperature", "top_p"):
+        if name in params and not 0 <= params[name] <= (2 if name == "temperature" else 1):
+            raise ConfigError(f"{role}_{name} {params[name]} is out of range", field=f"--agent-option {role}_{name}",
+                              fix=f"pass e.g. --agent-option {role}_{name}={SAMPLING[name][1]}")
+    if params.get("max_tokens") is not None and params["max_tokens"] < 1:
+        raise ConfigError(f"{role}_max_tokens must be 1 or more", field=f"--agent-option {role}_max_tokens",
+                          fix=f"pass e.g. --agent-option {role}_max_tokens={PLANNER_MAX_TOKENS}")
+    return params
+
+
+def _full_screens() -> dict[str, Any]:
+    """The planner's screenshots, for the run card: PNG at each platform's full screen size."""
+    from jarvis_pytest.devices.platforms import PLATFORMS
+
+    screens = {p: list(f.screen) for p, f in PLATFORMS.items()}
+    return {"encoding": "PNG", "screen": screens, "sent": screens}
+
+
+def source_digest(*objects: Any) -> str:
+    """A short SHA-256 of the source files of `objects` (modules, classes, paths): what a prompt or a parser was
+    when a run was made, comparable across runs (`jarvis diff`)."""
+    import hashlib
+    import inspect
+    from pathlib import Path
+
+    h = hashlib.sha256()
+    for obj in objects:
+        path = obj if isinstance(obj, Path) else Path(inspect.getsourcefile(obj) or "")
+        h.update(path.name.encode() + b"\0" + (path.read_bytes() if path.is_file() else b"?") + b"\0")
+    return h.hexdigest()[:16]
+
+
 def build_planner_grounder(name: str, grounder_cls: type[Grounder], options: dict[str, Any] | None = None
                            ) -> PlannerGrounderAgent:
     """The planner–grounder agent `name` with `grounder_cls` as grounding model, configured from `options`
-    (see :mod:`jarvis_pytest.llm.config` for the keys and the other sources). Extra options:
-    ``planner_temperature``, ``planner_max_tokens``, ``swipe_fraction`` (default 0.3)."""
+    (see :mod:`jarvis_pytest.llm.config` for the keys and the other sources). Extra options: the sampling
+    parameters ``planner_temperature`` (default 0: greedy), ``planner_top_p`` (1), ``planner_max_tokens`` (2048),
+    ``grounder_temperature``, ``grounder_top_p``, ``grounder_max_tokens`` (the adapter's own, else 0, 1 and 256),
+    all sent on every call; ``seed`` (``derived``, the default: each call carries a seed from the task id and the
+    trial; ``none``: no seed, for a server that refuses the field); ``swipe_fraction`` (default 0.3)."""
     options = dict(options or {})
     planner_cfg: EndpointConfig = resolve_endpoint("planner", options, defaults={"model": DEFAULT_PLANNER_MODEL})
     grounder_cfg: EndpointConfig = resolve_endpoint("grounder", options,
                                                     defaults={"model": grounder_cls.default_model or None})
-    params: dict[str, Any] = {}
-    if options.get("planner_temperature") not in (None, ""):
-        params["temperature"] = _option(options, "planner_temperature", float, 0.0)
-    if options.get("planner_max_tokens") not in (None, ""):
-        params["max_tokens"] = _option(options, "planner_max_tokens", int, 2048)
+    params = _sampling(options, "planner", {**{k: d for k, (_, d) in SAMPLING.items()},
+                                            "max_tokens": PLANNER_MAX_TOKENS})
+    adapter = grounder_cls.params
+    grounder_params = _sampling(options, "grounder", {"temperature": adapter.get("temperature", 0.0),
+                                                      "top_p": adapter.get("top_p", 1.0),
+                                                      "max_tokens": adapter.get("max_tokens", 256)})
+    seed = str(options.get("seed") or "derived")
+    if seed not in SEED_MODES:
+        raise ConfigError(f"seed {seed!r} is not one of {', '.join(SEED_MODES)}", field="--agent-option seed",
+                          fix="pass --agent-option seed=derived (a seed per task and trial) or seed=none")
     swipe = _option(options, "swipe_fraction", float, 0.3)
     if not 0 < swipe <= 1:
         raise ConfigError(f"swipe_fraction must be in (0, 1], got {swipe}", field="--agent-option swipe_fraction",
                           fix="pass e.g. --agent-option swipe_fraction=0.3")
+    from jarvis_pytest.agents import grounding
+    from jarvis_pytest.agents.planner import prompt as prompt_module, tools as tools_module
+
     public = {"name": name, "kind": "planner-grounder", "grounder_adapter": grounder_cls.__name__,
               "planner": planner_cfg.public(), "grounder": grounder_cfg.public(), "planner_params": params,
-              "swipe_fraction": swipe}
-    return PlannerGrounderAgent(name, planner_cfg.client(), grounder_cls(grounder_cfg.client()),
-                                planner_params=params, swipe_fraction=swipe, public_config=public)
+              "grounder_params": {**grounder_cls.params, **grounder_params}, "seed": seed,
+              "swipe_fraction": swipe,
+              "prompts": {"planner": source_digest(PROMPT_FILE, prompt_module),
+                          "grounder": source_digest(grounder_cls)},
+              "parsers": {"planner": source_digest(tools_module), "grounder": source_digest(grounding, grounder_cls)},
+              "model_input": {"planner": _full_screens(), "grounder": grounder_cls.model_input()}}
+    grounder = grounder_cls(grounder_cfg.client())
+    grounder.overrides = grounder_params
+    return PlannerGrounderAgent(name, planner_cfg.client(), grounder, planner_params=params, swipe_fraction=swipe,
+                                public_config=public, seed=seed)
