@@ -16,6 +16,7 @@ COMMAND_MODULES = [
     "jarvis_pytest.dashboard.commands",
     "jarvis_pytest.agents.commands",
     "jarvis_pytest.player.commands",
+    "jarvis_pytest.report.reproduce",
 ]
 
 

@@ -314,7 +314,7 @@ def test_pytest_cases_make_atomic_instances_on_first_use(monkeypatch, pytestconf
     made = []
     real = instances.atomic_task
     monkeypatch.setattr(instances, "atomic_task", lambda t, n, **kw: made.append(n) or real(t, n, **kw))
-    params = cases.params("atomic", SimpleNamespace(library=repo_tasks, instances=3),
+    params = cases.params("atomic", SimpleNamespace(library=repo_tasks, instances=3, trials=1),
                           pytestconfig)  # the application markers are declared on it
     assert made == [] and len(params) == 3 * len(load_library(repo_tasks).templates)
     for param, task in zip(params, expected, strict=True):

@@ -30,6 +30,8 @@ class TaskContext:
     instruction: str
     platforms: tuple[str, ...]  # the platforms the task uses
     transfer: dict[str, str] = field(default_factory=dict)  # url, user, password, folder, flavour of the drive
+    trial: int = 1  # which of the run's `--trials` this is; each trial starts on fresh devices
+    seed: int | None = None  # for the agent's sampling: from the task id and the trial, the same on any machine
 
 
 @dataclass

@@ -16,6 +16,7 @@ from typing import Any
 from jarvis_pytest.results.model import TaskResult
 
 RATE_KEYS = ("rate", "value", "mean", "point", "estimate")
+RATE_WORDS = ("tsr", "ssr", "rate", "mean", "pass_")  # a column of shares, shown as percentages (pass@K, pass^K)
 _memo: dict[str, dict[str, Any]] = {}
 _memo_lock = threading.Lock()
 _MEMO_SIZE = 64
@@ -63,7 +64,7 @@ def _cell(key: str, v: Any) -> str:
     if v is None:
         return "–"
     if isinstance(v, float):
-        if any(w in key.lower() for w in ("tsr", "ssr", "rate")) and 0 <= v <= 1:
+        if any(w in key.lower() for w in RATE_WORDS) and 0 <= v <= 1:
             return f"{100 * v:.1f}%"
         return f"{v:.3g}"
     if isinstance(v, (list, tuple)) and len(v) == 2 and all(isinstance(x, (int, float)) for x in v):

@@ -16,6 +16,7 @@ from typing import Any, Callable
 import pytest
 
 from jarvis_pytest.plugin.options import JarvisOptions
+from jarvis_pytest.results.model import result_key
 from jarvis_pytest.tasks.model import Task
 
 CATEGORY_MARKERS = ("atomic", "sw", "mi", "md")
@@ -28,16 +29,33 @@ def app_marker(app: str) -> str:
 
 
 class TaskCase:
-    """The parameter of a task case: its id, category, platforms, applications and number of subtasks, and the
-    `Task` (made on first use; a bad instance raises its `ConfigError` then)."""
+    """The parameter of a task case: its id, category, platforms, applications and number of subtasks, which of
+    the run's `trials` it is, and the `Task` (made on first use, once for all its trials; a bad instance raises its
+    `ConfigError` then)."""
 
-    __slots__ = ("id", "category", "platforms", "apps", "size", "_make", "_task")
+    __slots__ = ("id", "category", "platforms", "apps", "size", "trial", "trials", "_make", "_task")
 
     def __init__(self, id: str, category: str, platforms: list[str], apps: list[str], size: int,
-                 make: Callable[[], Task]):
+                 make: Callable[[], Task], trial: int = 1, trials: int = 1):
         self.id, self.category, self.size = id, category, size
         self.platforms, self.apps = sorted(set(platforms)), sorted(set(apps))
         self._make, self._task = make, None
+        self.trial, self.trials = trial, trials
+
+    def trial_cases(self, trials: int) -> list["TaskCase"]:
+        """This case once per trial, 1 to `trials`; they share one `Task`, made on first use."""
+        return [TaskCase(self.id, self.category, self.platforms, self.apps, self.size, lambda: self.task, n, trials)
+                for n in range(1, trials + 1)]
+
+    @property
+    def key(self) -> str:
+        """Where its result is kept in the run (`results.model.result_key`)."""
+        return result_key(self.id, self.trial)
+
+    @property
+    def param_id(self) -> str:
+        """Its pytest id: the task id, with `-trial<n>` after it when the run has more than one trial."""
+        return self.id if self.trials == 1 else f"{self.id}-trial{self.trial}"
 
     @classmethod
     def of(cls, task: Task) -> "TaskCase":
@@ -59,7 +77,7 @@ def _param(case: TaskCase) -> Any:
     marks = [getattr(pytest.mark, p) for p in case.platforms]
     marks.append(getattr(pytest.mark, case.category))
     marks.extend(getattr(pytest.mark, app_marker(app)) for app in case.apps)
-    return pytest.param(case, id=case.id, marks=marks)
+    return pytest.param(case, id=case.param_id, marks=marks)
 
 
 def params(kind: str, options: JarvisOptions, config: pytest.Config) -> list[Any]:
@@ -78,6 +96,8 @@ def params(kind: str, options: JarvisOptions, config: pytest.Config) -> list[Any
     else:  # each subtask with its template's current GUI solution (`with_gui_solutions`)
         library = load_library(options.library)
         found = [TaskCase.of(with_gui_solutions(t, library)) for t in load_tasks(options.datasets)]
+    if options.trials > 1:
+        found = [trial for case in found for trial in case.trial_cases(options.trials)]
     for app in sorted({app for c in found for app in c.apps}):
         config.addinivalue_line("markers", f"{app_marker(app)}: tasks of the application {app}")
     return [_param(c) for c in found]

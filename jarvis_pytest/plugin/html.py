@@ -54,9 +54,10 @@ class HtmlHooks:
             return
         import pytest_html
 
+        from jarvis_pytest.results.model import result_key
         from jarvis_pytest.results.writer import safe_name
 
-        task_dir = Path(p["dir"]) / safe_name(p["task_id"])
+        task_dir = Path(p["dir"]) / safe_name(result_key(p["task_id"], p.get("trial", 1)))
         extras = getattr(report, "extras", [])
         for label in ("first_screenshot", "last_screenshot"):
             if p.get(label):

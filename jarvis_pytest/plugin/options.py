@@ -41,6 +41,15 @@ def addoption(parser: pytest.Parser) -> None:
                 "past it the task ends as an infrastructure error (default 300)")
     g.addoption("--task-timeout", default="3600", help="seconds for one task's agent loop; past it the task ends "
                 "with status `timeout`, counted apart from the rates (default 3600)")
+    g.addoption("--trials", default="1", help="run every selected task K times, each on fresh devices (ids gain "
+                "-trial<i>); the summary gives the mean rate over trials, pass@K, pass^K and the tasks whose trials "
+                "disagree (default 1)")
+    g.addoption("--reproduce", default=None, metavar="RUN_DIR", help="run again the tasks and trials an earlier "
+                "run planned (its plan.json), under the conditions of its run card: refused, naming each difference, "
+                "where this machine or command differs (another image, backend, harness, agent setting) unless "
+                "--allow-differences; what `jarvis reproduce RUN_DIR` runs")
+    g.addoption("--allow-differences", action="store_true", help="with --reproduce: run even where the conditions "
+                "differ from the run's card (the differences are recorded in the new run's card)")
     g.addoption("--results-dir", default=None, help="where to write results (default reports/<run id>/)")
     g.addoption("--resume", default=None, metavar="RUN_DIR", help="continue a run: tasks with a result from the "
                 "same agent configuration are not run again; errors and unfinished tasks are")
@@ -102,6 +111,10 @@ class JarvisOptions:
     backends: dict[str, str] = field(default_factory=dict)  # platform → backend name asked for (absent: auto)
     backend_options: dict[str, dict[str, str]] = field(default_factory=dict)  # platform → key → text (as given)
     docker_hosts: tuple[str, ...] = ()  # the run's Docker engines (`infra/engines.py`); empty: the local one
+    trials: int = 1  # each selected task runs this many times, on fresh devices each time
+    reproduce: Path | None = None  # an earlier run whose planned tasks (and trials) are run again, and only those,
+    #                               under the conditions of its run card
+    allow_differences: bool = False  # --reproduce although conditions differ
 
 
 def _endpoint(config: pytest.Config, role: str) -> dict[str, str | None]:
@@ -166,6 +179,11 @@ def read_options(config: pytest.Config) -> JarvisOptions:
         task_timeout=float(_number(config, "--task-timeout", float, minimum=0.001,
                                    fix="give a positive number of seconds, e.g. 3600")))
     instances = int(_number(config, "--instances", int, minimum=1, fix="give 1 or more seeded instances per template"))
+    trials = int(_number(config, "--trials", int, minimum=1, fix="give 1 or more trials per task, e.g. --trials 3"))
+    reproduce = _directory_option(config, "--reproduce")
+    if reproduce is not None and not (reproduce / "plan.json").is_file():
+        raise ConfigError("no plan.json there", path=reproduce, field="--reproduce",
+                          fix="give the folder of a run that started (reports/<run id>)")
     memory = config.getoption("--device-memory")
     if memory is not None and not MEMORY.match(str(memory).strip()):
         raise _bad("--device-memory", memory, "give a size such as 4g, 1536m or 2147483648")
@@ -209,6 +227,7 @@ def read_options(config: pytest.Config) -> JarvisOptions:
         allow_egress=config.getoption("--allow-egress"),
         backends=backends, backend_options=backend_options,
         docker_hosts=engines.configured(config.getoption("--docker-host"), config.rootpath),
+        trials=trials, reproduce=reproduce, allow_differences=config.getoption("--allow-differences"),
     )
 
 

@@ -17,13 +17,14 @@ from jarvis_pytest.infra.transfer_server import (TRANSFER_ALIAS, TRANSFER_FOLDER
                                                  TRANSFER_USER)
 from jarvis_pytest.errors import ConfigError, InfrastructureError, retry_device_faults
 from jarvis_pytest.plugin.evaluation import DriveWatch, capture_baselines, evaluate_subtasks
+from jarvis_pytest.plugin.inputs import input_hashes
 from jarvis_pytest.plugin import idle
 from jarvis_pytest.plugin.idle import idle_observation
 from jarvis_pytest.plugin.blame import AGENT_ERROR
 from jarvis_pytest.plugin.loop import LoopLimits, LoopOutcome, begin, run_loop
 from jarvis_pytest.plugin.setup_steps import run_setup, window_titles
 from jarvis_pytest.report.failure_modes import classify
-from jarvis_pytest.results.model import StepRecord, TaskResult
+from jarvis_pytest.results.model import StepRecord, TaskResult, trial_seed
 from jarvis_pytest.results.writer import TaskRecorder
 from jarvis_pytest.tasks.model import Task
 from jarvis_pytest.tasks.transfer import is_transfer
@@ -73,21 +74,23 @@ def _passed(result: TaskResult) -> bool:
     return passed
 
 
-def run_task(task: Task, ctx: RunContext) -> TaskResult:
-    """Run `task` and return its result; raises on infrastructure errors after recording them in result.json
-    with status "error". A device fault (`DeviceFault`: in set-up, an oracle command or a near-miss state) runs
-    the task again on fresh devices, up to DEVICE_FAULT_ATTEMPTS times in all; the result lists the faults."""
-    return retry_device_faults(lambda faults: _run_once(task, ctx, faults))[0]
+def run_task(task: Task, ctx: RunContext, trial: int = 1) -> TaskResult:
+    """Run trial `trial` of `task` and return its result; raises on infrastructure errors after recording them in
+    result.json with status "error". A device fault (`DeviceFault`: in set-up, an oracle command or a near-miss
+    state) runs the task again on fresh devices, up to DEVICE_FAULT_ATTEMPTS times in all; the result lists the
+    faults."""
+    return retry_device_faults(lambda faults: _run_once(task, ctx, faults, trial))[0]
 
 
-def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
+def _run_once(task: Task, ctx: RunContext, faults: list[str], trial: int = 1) -> TaskResult:
     platforms = task_platforms(task)
     subtasks = task.formatted_subtasks
     config = ctx.agent_config
     result = TaskResult(task_id=task.id, category=task.category, platforms=list(platforms),
                         instruction=task.instruction, status="running", agent=config,
                         agent_key=agent_key(config, ctx.limits), egress=ctx.egress,
-                        edges=[(e.from_[0], e.to[0]) for e in task.edges], device_faults=list(faults))
+                        edges=[(e.from_[0], e.to[0]) for e in task.edges], device_faults=list(faults),
+                        trial=trial, seed=trial_seed(task.id, trial))
     recorder = TaskRecorder(ctx.run_dir, result)
     t_start, wall_start = time.monotonic(), time.time()
     env = None
@@ -110,6 +113,7 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
         t_boot = time.monotonic()
         opened = run_setup(subtasks, env.devices)
         baselines = capture_baselines(subtasks, env.devices)
+        result.inputs = input_hashes(subtasks, env.devices, baselines)
         drive = DriveWatch(env, task)
         if ctx.qc:
             result.qc_initial = evaluate_subtasks(subtasks, env.devices, env.transfer, baselines, task.edges,
@@ -120,7 +124,8 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str]) -> TaskResult:
                     "password": TRANSFER_PASSWORD, "folder": TRANSFER_FOLDER,
                     "flavour": getattr(env.transfer, "flavour", "copyparty")}
         failed_reset = begin(ctx.agent, TaskContext(task_id=task.id, instruction=task.instruction,
-                                                    platforms=platforms, transfer=transfer), ctx.limits)
+                                                    platforms=platforms, transfer=transfer, trial=trial,
+                                                    seed=result.seed), ctx.limits)
         brief_oracle(ctx.agent, subtasks, env.devices, result.backends,  # to the built-in oracles only
                      window_titles(opened, env.devices) if type(ctx.agent) is GuiOracleAgent else None)
         limits = ctx.limits

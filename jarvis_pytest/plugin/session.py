@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 from jarvis_pytest.errors import ConfigError, InfrastructureError, JarvisError
-from jarvis_pytest.plugin import cases
+from jarvis_pytest.plugin import cases, conditions
 from jarvis_pytest.plugin.evaluation import failure_message, qc_message
 from jarvis_pytest.plugin.options import REPO_ROOT, JarvisOptions, new_run_id, read_options
 from jarvis_pytest.plugin.runner import RunContext, agent_key, run_task, task_platforms
@@ -195,12 +195,26 @@ class JarvisSession:
         _remove_orphans(self.options.docker_hosts)
         if self.lock is not None and not self.lock.was_kept:  # this folder's earlier, dead sessions' leftovers
             _remove_run_resources(run_state.resource_id(self.run_dir), self.options.docker_hosts)  # (none of ours yet)
-        self.state = run_state.RunState(self.run_dir, redacted_argv(sys.argv[1:]), resumed=not self.new_run)
+        argv = redacted_argv(sys.argv[1:])
+        card = conditions.start_card(self.options, self.config, agent.config(), self.backends, argv)
+        self.state = run_state.RunState(self.run_dir, argv, resumed=not self.new_run)
         self.state.start(agent=agent.config(), agent_key=key, egress=self.options.allow_egress,
                          backends=self.backends.record(),
-                         options={"max_steps": self.options.limits.max_steps, "instances": self.options.instances},
+                         options={"max_steps": self.options.limits.max_steps, "instances": self.options.instances,
+                                  "trials": self.options.trials},
                          engines=list(dict.fromkeys([*(self.state.meta.get("engines") or []),
-                                                     *self.options.docker_hosts])))  # every session's, for cleanup
+                                                     *self.options.docker_hosts])),  # every session's, for cleanup
+                         card=card)
+
+    def pytest_report_header(self, config: pytest.Config) -> list[str] | None:
+        """At the start of a run: the settings that change scores, and a warning for each unusual one."""
+        card = (self.state.meta.get("card") if self.is_controller and self.state is not None else None)
+        if not card:
+            return None
+        from jarvis_pytest.report.run_card import settings_lines, unusual
+
+        return ([f"jarvis: {line}" for line in settings_lines(card)]
+                + [f"jarvis: WARNING: {w}" for w in unusual(card)])
 
     def _check_resume(self, key: str, agent_config: dict[str, Any], found: list[cases.TaskCase]) -> None:
         run_dir = self.run_dir
@@ -239,8 +253,8 @@ class JarvisSession:
         # a task that errored, timed out or never ran is run again anyway, so fixing its setup is welcome.
         digests = run_state.read_plan(run_dir)["digests"]
         with _task_data_checked():  # only tasks with a kept result are made (and compared)
-            changed = sorted(c.id for c in found if c.id in digests and _kept(read_result(run_dir, c.id), key)
-                             and digests[c.id] != run_state.task_digest(c.task))
+            changed = sorted({c.id for c in found if c.id in digests and _kept(read_result(run_dir, c.key), key)
+                              and digests[c.id] != run_state.task_digest(c.task)})
         if changed:
             more = f" and {len(changed) - 3} more" if len(changed) > 3 else ""
             raise ConfigError(f"tasks with a result changed since the run was planned: "
@@ -257,6 +271,8 @@ class JarvisSession:
     @pytest.hookimpl(trylast=True)  # after -m/-k deselected: it sees, orders and asks an agent for what is left
     def pytest_collection_modifyitems(self, session: pytest.Session, config: pytest.Config,
                                       items: list[pytest.Item]) -> None:
+        if self.options.reproduce is not None:
+            self._keep_planned(config, items)
         jarvis_items = [i for i in items if _case_of(i) is not None]
         if not jarvis_items:
             return
@@ -270,15 +286,40 @@ class JarvisSession:
         for pos, item in zip(positions, sorted(jarvis_items, key=lambda i: order[id(i)])):
             items[pos] = item
 
+    def _keep_planned(self, config: pytest.Config, items: list[pytest.Item]) -> None:
+        """--reproduce RUN_DIR: deselect every task case its plan.json does not name; say which it names that
+        are not here (a template or dataset that changed since)."""
+        planned = set(run_state.read_plan(self.options.reproduce)["tasks"])
+        keep = [i for i in items if _case_of(i) is None or _case_of(i).key in planned]
+        dropped = [i for i in items if _case_of(i) is not None and _case_of(i).key not in planned]
+        if dropped:
+            config.hook.pytest_deselected(items=dropped)
+            items[:] = keep
+        missing = planned - {_case_of(i).key for i in keep if _case_of(i) is not None}
+        if missing and self.is_controller:
+            names = sorted(missing)
+            more = f" and {len(names) - 3} more" if len(names) > 3 else ""
+            print(f"[jarvis] --reproduce {self.options.reproduce}: {len(names)} planned task(s) not found "
+                  f"here: {', '.join(names[:3])}{more} (not collected: check the test paths, --library, --dataset "
+                  f"and --trials)", file=sys.stderr, flush=True)
+
     def pytest_collection_finish(self, session: pytest.Session) -> None:
         """plan.json gains the tasks this session will run (the dashboard shows those not started as pending;
         the summary counts those never run). Every xdist worker collects the same items: each writes the same."""
         if self.config.option.collectonly or not self.options.agent:
             return
         with _task_data_checked():  # the selected tasks are made now: a bad one is found before any device boots
-            tasks = [t for t in map(_task_of, session.items) if t is not None]
-        if tasks and (self.state is not None or not self.is_controller):
-            run_state.merge_plan(self.run_dir, tasks)
+            selected = [(c.key, c.task) for c in map(_case_of, session.items) if c is not None]
+        tasks = list({id(t): t for _, t in selected}.values())  # each task once, whatever its trials
+        if selected and (self.state is not None or not self.is_controller):
+            run_state.merge_plan(self.run_dir, selected)
+        if selected and self.state is not None and self.state.meta.get("card"):
+            from jarvis_pytest.report.run_card import plan_digest
+
+            plan = run_state.read_plan(self.run_dir)
+            self.state.update(card={**self.state.meta["card"], "tasks": {
+                **self.state.meta["card"]["tasks"], "planned": len(plan["tasks"]),
+                "plan_digest": plan_digest(plan["tasks"], plan["digests"])}})
         if tasks and self.options.docker_hosts:  # the images this process's tasks need, on its engine
             _copy_images_to_engine(self.options, self.backends, self.worker, tasks)
         if tasks and not self.is_controller:
@@ -350,14 +391,14 @@ class JarvisSession:
                                 platforms=list(task_platforms(task)), instruction=task.instruction,
                                 status="skipped", error=reason, agent=agent.config(),
                                 agent_key=agent_key(agent.config(), self.options.limits), started=now_iso(),
-                                finished=now_iso())
-            folder = task_dir(self.run_dir, task.id)
+                                finished=now_iso(), trial=case.trial)
+            folder = task_dir(self.run_dir, case.key)
             folder.mkdir(parents=True, exist_ok=True)
             write_json_atomic(folder / "result.json", result.model_dump(mode="json"))
             request.node.user_properties.append((PROPERTY, _compact(result, self.run_dir)))
             pytest.skip(reason)
         if self.options.resume:
-            stored = read_result(self.run_dir, task.id)
+            stored = read_result(self.run_dir, case.key)
             key = agent_key(agent.config(), self.options.limits)
             if _kept(stored, key):
                 request.node.user_properties.append((PROPERTY, _compact(stored, self.run_dir) | {"resumed": True}))
@@ -366,9 +407,9 @@ class JarvisSession:
         ctx.prewarm_next = self.next_platforms
         failure = None
         try:
-            result = run_task(task, ctx)
+            result = run_task(task, ctx, trial=case.trial)
         except (InfrastructureError, ConfigError) as exc:
-            stored = read_result(self.run_dir, task.id)
+            stored = read_result(self.run_dir, case.key)
             if stored is not None:
                 request.node.user_properties.append((PROPERTY, _compact(stored, self.run_dir)))
             failure = f"infrastructure error ({exc.__class__.__name__}): {exc}"
@@ -400,7 +441,8 @@ class JarvisSession:
         if self.is_controller and self.state is not None:
             interrupted = self.interrupted or int(exitstatus) == int(pytest.ExitCode.INTERRUPTED)
             try:
-                self.state.finish(interrupted or self.storage_failure is not None, int(exitstatus))
+                self.state.finish(interrupted or self.storage_failure is not None, int(exitstatus),
+                                  **self._finished_card())
                 if (self.new_run and not (self.run_dir / "plan.json").exists()
                         and not (self.run_dir / "tasks").exists()):
                     (self.run_dir / "run.json").unlink(missing_ok=True)  # nothing was selected: no empty run left
@@ -419,6 +461,16 @@ class JarvisSession:
         if self.is_controller and (self.state is not None or self.interrupted) and not keep:
             _remove_run_resources(run_id, self.options.docker_hosts)
         self.release_results_folder()
+
+    def _finished_card(self) -> dict[str, Any]:
+        """{"card": the run card with what the devices turned out to be} (nothing for a run without a card)."""
+        card = self.state.meta.get("card") if self.state is not None else None
+        if not card:
+            return {}
+        from jarvis_pytest.report.rollup import load_results
+        from jarvis_pytest.report.run_card import with_results
+
+        return {"card": with_results(card, load_results(self.run_dir)[0])}
 
     def _storage_failed(self, exc: OSError) -> None:
         """One line on stderr, once, when the end of the run (run.json, the summary, report.html) could not be
@@ -607,7 +659,7 @@ def _kept(stored: TaskResult | None, key: str) -> bool:
 def _compact(result: TaskResult, run_dir: Path) -> dict[str, Any]:
     data = result.model_dump(mode="json", include={
         "task_id", "category", "platforms", "status", "steps", "end_reason", "error", "durations", "agent",
-        "first_screenshot", "last_screenshot", "instruction"})
+        "first_screenshot", "last_screenshot", "instruction", "trial"})
     data["subtasks"] = [{"index": s.index, "template": s.template, "platform": s.platform, "passed": s.passed}
                         for s in result.subtasks]
     data["dir"] = str((run_dir / "tasks").resolve())

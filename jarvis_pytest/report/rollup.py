@@ -27,7 +27,7 @@ import random
 import threading
 from collections import Counter
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from pydantic import BaseModel, Field
 
@@ -84,7 +84,8 @@ class Composed(BaseModel):
 
 
 class BySubtasks(BaseModel):
-    """Composed tasks with `subtasks` subtasks: `k` of `n` passed; `ssr` is the mean of per-task ratios."""
+    """Composed tasks with `subtasks` subtasks: `k` of `n` passed (with `--trials`, k and n count trials and `tsr`
+    is the mean over tasks of their share of trials passed); `ssr` is the mean of per-task ratios."""
 
     subtasks: int
     n: int
@@ -94,7 +95,8 @@ class BySubtasks(BaseModel):
 
 
 class ByDevices(BaseModel):
-    """Composed tasks on `devices` devices: `k` of `n` passed; `ssr` is the mean of per-task ratios."""
+    """Composed tasks on `devices` devices: `k` of `n` passed (trials, as in `BySubtasks`); `ssr` is the mean of
+    per-task ratios."""
 
     devices: int
     n: int
@@ -117,6 +119,40 @@ class Timing(BaseModel):
     decision_per_step: float | None = None  # Σ decision time / Σ steps
 
 
+class TrialCell(BaseModel):
+    """One cell over K trials per task: `mean` is the mean over its tasks of the share of their counted trials that
+    passed; `pass_at_k` the share of tasks solved in at least one of K trials, `pass_all_k` (pass^K) in all K
+    (unbiased estimators where a task has more than K counted trials). `tasks` with K counted trials enter pass@K
+    and pass^K; `incomplete` tasks (fewer: some trials errored or never ran) enter only the mean."""
+
+    tasks: int
+    incomplete: int = 0
+    mean: float | None = None
+    mean_ci: tuple[float, float] | None = None
+    pass_at_k: float | None = None
+    pass_at_k_ci: tuple[float, float] | None = None
+    pass_all_k: float | None = None
+    pass_all_k_ci: tuple[float, float] | None = None
+
+
+class TrialTask(BaseModel):
+    """One task's trials: `passed` of its `counted` trials (errors, timeouts and unfinished trials not counted)."""
+
+    task_id: str
+    category: str
+    passed: int
+    counted: int
+
+
+class Trials(BaseModel):
+    """`--trials K`: every cell over K trials per task, each task's count, and the tasks whose trials disagree."""
+
+    k: int
+    cells: dict[str, TrialCell]  # "atomic/<platform>", "atomic/overall", "composed/<category>", "composed/overall", "all"
+    tasks: list[TrialTask] = Field(default_factory=list)
+    unstable: list[str] = Field(default_factory=list)  # task ids with passed and failed trials
+
+
 class Summary(BaseModel):
     """summary.json. Rates are fractions in [0, 1]; intervals are [lo, hi] or None when there is no task."""
 
@@ -136,9 +172,10 @@ class Summary(BaseModel):
     stand_ins: dict[str, list[str]] = Field(default_factory=dict)  # platform → stand-in backends that ran it
     stand_in_categories: list[str] = Field(default_factory=list)  # atomic/sw/mi/md with a stand-in result counted
     devices: dict[str, list[str]] = Field(default_factory=dict)  # platform → what its devices really were
-    tasks: int = 0  # tasks counted in the rates
+    tasks: int = 0  # tasks counted in the rates (each once, however many trials it had)
     rerun_after_device_fault: int = 0  # counted tasks whose devices faulted once and that ran again on fresh ones
     timing: Timing | None = None  # time per task and per step (None: no counted task ran its loop)
+    trials: Trials | None = None  # the run had --trials K > 1: rates over trials, pass@K, pass^K, unstable tasks
     warnings: list[str] = Field(default_factory=list)  # inconsistent or unexpected results
     seed: int = 0
     n_boot: int = 2000
@@ -149,15 +186,26 @@ class Summary(BaseModel):
 
 
 class _Task:
-    """What the rollup needs of one finished task."""
+    """What the rollup needs of one task over its counted trials (one trial without `--trials`): `success` is the
+    share of its trials that passed, `ratio` the mean over its trials of passed/total subtasks."""
 
-    __slots__ = ("success", "passed", "total", "ratio")
+    __slots__ = ("success", "wins", "trials", "passed", "total", "ratio")
 
-    def __init__(self, r: TaskResult):
-        self.success = 1 if r.status == "passed" else 0
-        self.passed = r.passed_subtasks
-        self.total = len(r.subtasks)
-        self.ratio = self.passed / self.total if self.total else 0.0
+    def __init__(self, trials: Sequence[TaskResult]):
+        self.trials = len(trials)
+        self.wins = sum(1 for r in trials if r.status == "passed")
+        self.success = self.wins / self.trials
+        self.passed = sum(r.passed_subtasks for r in trials)
+        self.total = sum(len(r.subtasks) for r in trials)
+        self.ratio = math.fsum(r.passed_subtasks / len(r.subtasks) if r.subtasks else 0.0 for r in trials) / self.trials
+
+
+def _tasks(results: Sequence[TaskResult]) -> list[_Task]:
+    """One `_Task` per task id, in id order, over its results (one per trial)."""
+    by_id: dict[str, list[TaskResult]] = {}
+    for r in results:
+        by_id.setdefault(r.task_id, []).append(r)
+    return [_Task(by_id[tid]) for tid in sorted(by_id)]
 
 
 def _interval(stats: list[float], level: float) -> tuple[float, float]:
@@ -168,44 +216,49 @@ def _interval(stats: list[float], level: float) -> tuple[float, float]:
 
 
 def _group(name: str, results: list[TaskResult], seed: int, n_boot: int) -> Composed:
-    """TSR and SSR of one group of tasks, with intervals from the same (paired) bootstrap resamples."""
-    tasks = [_Task(r) for r in results]
+    """TSR and SSR of one group of tasks, with intervals from the same (paired) bootstrap resamples of tasks (a
+    task's trials stay together). With one trial per task TSR is the share of tasks that passed; with more, the
+    mean over tasks of the share of their trials that passed, and k/n count trials."""
+    tasks = _tasks(results)
     n = len(tasks)
     if n == 0:
         return Composed(tsr=Rate(rate=None, k=0, n=0), ssr=SubtaskRate(rate=None, k=0, n=0, tasks=0))
-    k = sum(t.success for t in tasks)
+    k, runs = sum(t.wins for t in tasks), sum(t.trials for t in tasks)
     passed, total = sum(t.passed for t in tasks), sum(t.total for t in tasks)
     rng = random.Random(f"jarvis-rollup/{seed}/{name}")  # str seeds are hashed with SHA-512: stable everywhere
     tsr_b, ssr_b, pooled_b = [], [], []
     for _ in range(n_boot):
         sample = rng.choices(tasks, k=n)
-        tsr_b.append(sum(t.success for t in sample) / n)
+        tsr_b.append(math.fsum(t.success for t in sample) / n)
         ssr_b.append(math.fsum(t.ratio for t in sample) / n)  # fsum is exact: the order of a sample cannot matter
         sample_total = sum(t.total for t in sample)
         pooled_b.append(sum(t.passed for t in sample) / sample_total if sample_total else 0.0)
     return Composed(
-        tsr=Rate(rate=k / n, k=k, n=n, ci=_interval(tsr_b, LEVEL)),
+        tsr=Rate(rate=math.fsum(t.success for t in tasks) / n, k=k, n=runs, ci=_interval(tsr_b, LEVEL)),
         ssr=SubtaskRate(rate=math.fsum(t.ratio for t in tasks) / n, k=passed, n=total, tasks=n,
                         ci=_interval(ssr_b, LEVEL), pooled_rate=passed / total if total else None,
                         pooled_ci=_interval(pooled_b, LEVEL) if total else None))
 
 
-def _curve(results: list[TaskResult]) -> list[BySubtasks]:
-    sizes: dict[int, list[_Task]] = {}
+def _by_size(results: list[TaskResult], size: Callable[[TaskResult], int]) -> list[dict[str, Any]]:
+    """Per value of `size` (a task's subtasks, its devices), in order: the size, k/n (trials), TSR and SSR."""
+    groups: dict[int, list[TaskResult]] = {}
     for r in results:
-        sizes.setdefault(len(r.subtasks), []).append(_Task(r))
-    return [BySubtasks(subtasks=size, n=len(ts), k=sum(t.success for t in ts),
-                       tsr=sum(t.success for t in ts) / len(ts), ssr=math.fsum(t.ratio for t in ts) / len(ts))
-            for size, ts in sorted(sizes.items())]
+        groups.setdefault(size(r), []).append(r)
+    out = []
+    for value, rs in sorted(groups.items()):
+        ts = _tasks(rs)
+        out.append({"size": value, "n": sum(t.trials for t in ts), "k": sum(t.wins for t in ts),
+                    "tsr": math.fsum(t.success for t in ts) / len(ts), "ssr": math.fsum(t.ratio for t in ts) / len(ts)})
+    return out
+
+
+def _curve(results: list[TaskResult]) -> list[BySubtasks]:
+    return [BySubtasks(subtasks=g.pop("size"), **g) for g in _by_size(results, lambda r: len(r.subtasks))]
 
 
 def _by_devices(results: list[TaskResult]) -> list[ByDevices]:
-    sizes: dict[int, list[_Task]] = {}
-    for r in results:
-        sizes.setdefault(len(set(r.platforms)), []).append(_Task(r))
-    return [ByDevices(devices=size, n=len(ts), k=sum(t.success for t in ts),
-                      tsr=sum(t.success for t in ts) / len(ts), ssr=math.fsum(t.ratio for t in ts) / len(ts))
-            for size, ts in sorted(sizes.items())]
+    return [ByDevices(devices=g.pop("size"), **g) for g in _by_size(results, lambda r: len(set(r.platforms)))]
 
 
 def _failure_modes(done: dict[str, list[TaskResult]]) -> dict[str, dict[str, int]]:
@@ -256,18 +309,18 @@ def _timing(results: list[TaskResult]) -> Timing | None:
 
 
 def _dedupe(results: Sequence[TaskResult], warnings: list[str]) -> list[TaskResult]:
-    """One result per task id, sorted by id. A duplicated id keeps the most finished result, whatever the order:
-    status rank, then latest `finished`, then the larger JSON text."""
-    by_id: dict[str, TaskResult] = {}
+    """One result per task and trial (`TaskResult.key`), sorted by task id and trial. A duplicated key keeps the
+    most finished result, whatever the order: status rank, then latest `finished`, then the larger JSON text."""
+    by_key: dict[str, TaskResult] = {}
     rank = lambda r: (_STATUS_RANK.get(r.status, 0), r.finished, r.model_dump_json())  # noqa: E731
     for r in results:
-        other = by_id.get(r.task_id)
+        other = by_key.get(r.key)
         if other is None or rank(r) > rank(other):
-            by_id[r.task_id] = r
-    counts = Counter(r.task_id for r in results)
-    warnings += [f"task {tid!r} appears {c} times; kept its {by_id[tid].status} result"
-                 for tid, c in sorted(counts.items()) if c > 1]
-    return [by_id[tid] for tid in sorted(by_id)]
+            by_key[r.key] = r
+    counts = Counter(r.key for r in results)
+    warnings += [f"task {key!r} appears {c} times; kept its {by_key[key].status} result"
+                 for key, c in sorted(counts.items()) if c > 1]
+    return sorted(by_key.values(), key=lambda r: (r.task_id, r.trial))
 
 
 def _atomic_platform(r: TaskResult) -> str | None:
@@ -288,6 +341,63 @@ def _check(r: TaskResult, warnings: list[str]) -> None:
         warnings.append(f"atomic task {r.task_id!r} has platforms {r.platforms}: counted in Overall only")
 
 
+def _trial_count(results: Sequence[TaskResult], planned: dict[str, str] | None) -> int:
+    """K of `--trials K`: the highest trial among the results and the planned keys (`task#trial<n>`)."""
+    from jarvis_pytest.results.model import TRIAL_MARK
+
+    found = [r.trial for r in results]
+    for key in planned or {}:
+        number = key.rpartition(TRIAL_MARK)[2] if TRIAL_MARK in key else "1"
+        found.append(int(number) if number.isdigit() else 1)
+    return max(found, default=1)
+
+
+def _pass_k(n: int, c: int, k: int) -> tuple[float, float]:
+    """(pass@k, pass^k) of a task with `c` of `n` ≥ k trials passed: the chance that k trials drawn from its n
+    hold at least one pass, and only passes (with n = k: solved in any, in all)."""
+    total = math.comb(n, k)
+    return 1 - math.comb(n - c, k) / total, math.comb(c, k) / total
+
+
+def _trial_cell(name: str, results: list[TaskResult], k: int, seed: int, n_boot: int) -> TrialCell:
+    by_id: dict[str, list[TaskResult]] = {}
+    for r in results:
+        by_id.setdefault(r.task_id, []).append(r)
+    tasks = [by_id[t] for t in sorted(by_id)]
+    if not tasks:
+        return TrialCell(tasks=0)
+    share = [sum(r.status == "passed" for r in rs) / len(rs) for rs in tasks]
+    full = [_pass_k(len(rs), sum(r.status == "passed" for r in rs), k) for rs in tasks if len(rs) >= k]
+    rng = random.Random(f"jarvis-rollup/{seed}/trials/{name}")
+    mean_b = [math.fsum(rng.choices(share, k=len(share))) / len(share) for _ in range(n_boot)]
+    cell = TrialCell(tasks=len(full), incomplete=len(tasks) - len(full), mean=math.fsum(share) / len(share),
+                     mean_ci=_interval(mean_b, LEVEL))
+    if full:
+        at_b, all_b = [], []
+        for _ in range(n_boot):
+            sample = rng.choices(full, k=len(full))
+            at_b.append(math.fsum(a for a, _ in sample) / len(sample))
+            all_b.append(math.fsum(b for _, b in sample) / len(sample))
+        cell.pass_at_k, cell.pass_at_k_ci = math.fsum(a for a, _ in full) / len(full), _interval(at_b, LEVEL)
+        cell.pass_all_k, cell.pass_all_k_ci = math.fsum(b for _, b in full) / len(full), _interval(all_b, LEVEL)
+    return cell
+
+
+def _trials(done: dict[str, list[TaskResult]], k: int, seed: int, n_boot: int) -> Trials:
+    groups = {f"atomic/{p}": [r for r in done["atomic"] if _atomic_platform(r) == p] for p in PLATFORMS}
+    groups["atomic/overall"] = done["atomic"]
+    groups.update({f"composed/{c}": done[c] for c in COMPOSED})
+    groups["composed/overall"] = [r for c in COMPOSED for r in done[c]]
+    groups["all"] = [r for c in CATEGORIES for r in done[c]]
+    by_id: dict[str, list[TaskResult]] = {}
+    for r in groups["all"]:
+        by_id.setdefault(r.task_id, []).append(r)
+    tasks = [TrialTask(task_id=t, category=rs[0].category.lower(), passed=sum(r.status == "passed" for r in rs),
+                       counted=len(rs)) for t, rs in sorted(by_id.items())]
+    return Trials(k=k, cells={name: _trial_cell(name, rs, k, seed, n_boot) for name, rs in groups.items()},
+                  tasks=tasks, unstable=[t.task_id for t in tasks if 0 < t.passed < t.counted])
+
+
 def rollup(results: Sequence[TaskResult], *, seed: int = 0, n_boot: int = 2000,
            agent: str | None = None, planned: dict[str, str] | None = None) -> Summary:
     """The summary tables of `results`, in any order (see the module docstring for the definitions); `planned`
@@ -296,12 +406,13 @@ def rollup(results: Sequence[TaskResult], *, seed: int = 0, n_boot: int = 2000,
         raise ValueError(f"n_boot must be at least 1, not {n_boot}")
     warnings: list[str] = []
     ordered = _dedupe(results, warnings)
+    trials = _trial_count(ordered, planned)
     errors = dict.fromkeys(CATEGORIES, 0)
     unfinished = dict.fromkeys(CATEGORIES, 0)
     timeouts = dict.fromkeys(CATEGORIES, 0)
     not_run = dict.fromkeys(CATEGORIES, 0)
     skipped = dict.fromkeys(CATEGORIES, 0)
-    have = {r.task_id for r in ordered}
+    have = {r.key for r in ordered}
     for tid, cat in sorted((planned or {}).items()):
         if tid not in have and cat.lower() in not_run:
             not_run[cat.lower()] += 1
@@ -342,9 +453,10 @@ def rollup(results: Sequence[TaskResult], *, seed: int = 0, n_boot: int = 2000,
         stand_ins=_stand_ins(everything),
         stand_in_categories=sorted({r.category.lower() for r in everything if r.stand_ins}),
         devices=_devices(ordered),
-        tasks=len(everything), warnings=sorted(warnings),
+        tasks=len({r.task_id for r in everything}), warnings=sorted(warnings),
         rerun_after_device_fault=sum(1 for r in everything if r.device_faults),
-        timing=_timing(everything), seed=seed, n_boot=n_boot, level=LEVEL)
+        timing=_timing(everything), seed=seed, n_boot=n_boot, level=LEVEL,
+        trials=_trials(done, trials, seed, n_boot) if trials > 1 else None)
 
 
 # ----------------------------------------------------------------------------------------------------- render
@@ -393,6 +505,9 @@ def _notes(s: Summary) -> list[str]:
         f"{n_out} here). Unfinished tasks (status `running`: their session was stopped, {n_run} here) and tasks "
         f"planned but never started ({n_not} here) are not counted; `--resume` runs them.",
         f"- Intervals: {100 * s.level:g} % percentile bootstrap over tasks, {s.n_boot} resamples, seed {s.seed}.",
+        *([f"- {s.trials.k} trials per task: each rate is the mean over tasks of the share of their trials that "
+           f"passed, and (k/n) count trials; an interval resamples tasks with all their trials (Table 7)."]
+          if s.trials is not None else []),
         f"- A device that fails to carry out a command that is fine (Wine now and then cannot start a program) is "
         f"not the task's failure: set-up (before the agent acts), an oracle command or a quality-gate near-miss "
         f"state is done again on fresh devices, and an evaluator's read-only command is run again. The verdict is "
@@ -483,6 +598,8 @@ def render_markdown(s: Summary) -> str:
                            _secs(t.decision_per_task), _secs(t.decision_per_step)]])
         out += [f"A task's time is its agent loop's wall time, from the first screen to the last action; the "
                 f"decision time is {whose} (per step: over all steps of the counted tasks).", ""]
+    if s.trials is not None:
+        out += _trials_markdown(s.trials, s.level)
     out += ["## Not counted", ""]
     out += _md_table(["", *(_LABEL[c] for c in CATEGORIES), "Total"],
                      [[label, *(str(d.get(c, 0)) for c in CATEGORIES), str(sum(d.values()))]
@@ -493,6 +610,31 @@ def render_markdown(s: Summary) -> str:
     if s.warnings:
         out += ["Warnings:", "", *(f"- {w}" for w in s.warnings), ""]
     return "\n".join(out)
+
+
+_TRIAL_ROWS = [(f"atomic/{p}", f"Atomic {_LABEL[p]}") for p in PLATFORMS] + [("atomic/overall", "Atomic overall")] + \
+    [(f"composed/{c}", f"{_LABEL[c]}") for c in COMPOSED] + [("composed/overall", "Multi overall"), ("all", "All tasks")]
+
+
+def _trials_markdown(t: Trials, level: float) -> list[str]:
+    """Table 7 (each cell over K trials) and each task's trials; the unstable tasks named."""
+    out = [f"## Table 7. {t.k} trials per task: mean success over trials, pass@{t.k} and pass^{t.k} (%)", ""]
+    out += _md_table(["Cell", "Tasks", "Mean over trials", f"{100 * level:g} % CI", f"pass@{t.k}", "CI",
+                      f"pass^{t.k}", "CI"],
+                     [[label, str(c.tasks + c.incomplete) + (f" ({c.incomplete} incomplete)" if c.incomplete else ""),
+                       _pct(c.mean), _ci(c.mean_ci), _pct(c.pass_at_k), _ci(c.pass_at_k_ci), _pct(c.pass_all_k),
+                       _ci(c.pass_all_k_ci)]
+                      for key, label in _TRIAL_ROWS for c in [t.cells[key]] if c.tasks or c.incomplete])
+    out += [f"pass@{t.k}: solved in at least one of {t.k} trials; pass^{t.k}: solved in all {t.k}. A task with fewer "
+            f"counted trials (some errored, timed out or never ran) is incomplete: it counts in the mean only. "
+            f"Intervals resample tasks, each with all its trials.", ""]
+    out += [f"**Unstable tasks** (trials disagree): {len(t.unstable)}" + (": " + ", ".join(f"`{u}`" for u in t.unstable)
+                                                                         if t.unstable else "."), ""]
+    out += [f"### Trials passed per task", ""]
+    out += _md_table(["Task", "Category", "Trials passed"],
+                     [[x.task_id, x.category, f"{x.passed}/{x.counted}" + ("" if x.counted == t.k else
+                                                                          f" (of {t.k} planned)")] for x in t.tasks])
+    return out
 
 
 def render_terminal(s: Summary) -> str:
@@ -523,6 +665,19 @@ def render_terminal(s: Summary) -> str:
         who = "a person's time" if s.agent == HUMAN else "decision"
         lines.append(f"time: a task {_secs(s.timing.task_median)} s (median of {s.timing.tasks}), {who} per step "
                      f"{_secs(s.timing.decision_per_step)} s")
+    if s.trials is not None:
+        t, k = s.trials, s.trials.k
+        lines.append(f"trials: {k} per task; the rates above are means over trials, (k/n) = trials")
+        lines.append(f"{'':<18}{'tasks':>6}  {'mean [95 % CI]':<22}{f'pass@{k}':>8}{f'pass^{k}':>8}")
+        for key, label in _TRIAL_ROWS:
+            c = t.cells[key]
+            if c.tasks or c.incomplete:
+                lines.append(f"{label:<18}{c.tasks + c.incomplete:>6}  {_pct(c.mean) + ' ' + _ci(c.mean_ci):<22}"
+                             f"{_pct(c.pass_at_k):>8}{_pct(c.pass_all_k):>8}")
+        shown = ", ".join(f"{u} ({x.passed}/{x.counted})" for u in t.unstable[:5]
+                          for x in t.tasks if x.task_id == u)
+        more = f" and {len(t.unstable) - 5} more" if len(t.unstable) > 5 else ""
+        lines.append(f"unstable tasks (trials disagree): {len(t.unstable)}" + (f": {shown}{more}" if shown else ""))
     lines += [f"warning: {w}" for w in s.warnings]
     return "\n".join(lines)
 

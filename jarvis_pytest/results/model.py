@@ -159,7 +159,34 @@ class TaskResult(BaseModel):
     last_screenshot: str | None = None
     started: str = ""
     finished: str = ""
+    trial: int = 1  # which of the run's `--trials` this is (1 to K); every trial runs on fresh devices
+    seed: int | None = None  # the seed handed to the agent (`trial_seed`: from the task id and the trial)
+    # "platform:path" → SHA-256 of each input file as set-up left it on the device, before the agent's first step
+    # (`plugin/inputs.py`): the same instance gives the same bytes on any machine at any time
+    inputs: dict[str, str] = Field(default_factory=dict)
 
     @property
     def passed_subtasks(self) -> int:
         return sum(1 for s in self.subtasks if s.passed)
+
+    @property
+    def key(self) -> str:
+        """The result's identity in its run: the task id, and `#trial<n>` after it from the second trial on."""
+        return result_key(self.task_id, self.trial)
+
+
+TRIAL_MARK = "#trial"
+
+
+def result_key(task_id: str, trial: int = 1) -> str:
+    """A result's identity in its run (`TaskResult.key`): `task_id` for the first trial (so a one-trial run can be
+    given more trials by `--resume --trials K`), `task_id#trial<n>` for the n-th."""
+    return task_id if trial == 1 else f"{task_id}{TRIAL_MARK}{trial}"
+
+
+def trial_seed(task_id: str, trial: int) -> int:
+    """The seed an agent is given for one trial of a task: a 31-bit number from a SHA-256 of the task id and the
+    trial (the same on any machine; different for each trial, so sampling agents draw differently)."""
+    import hashlib
+
+    return int.from_bytes(hashlib.sha256(f"{task_id}{TRIAL_MARK}{trial}".encode()).digest()[:4], "big") >> 1

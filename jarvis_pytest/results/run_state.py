@@ -6,10 +6,12 @@ one whose process is gone ("interrupted") without trusting a state that a killed
 
     {"format": "jarvis-pytest run", "run_id", "state": "running" | "finished" | "interrupted",
      "started" (the first session's start, kept by --resume), "finished", "heartbeat", "pid", "host",
-     "agent", "agent_key", "egress", "sessions": [{"started", "finished", "argv", "pid", "exit", "resumed"}]}
+     "agent", "agent_key", "egress", "sessions": [{"started", "finished", "argv", "pid", "exit", "resumed"}],
+     "card": the run card, every condition its results depend on (`report/run_card.py`)}
 
-`plan.json`: ``{"tasks": [ids], "categories": {id: category}, "digests": {id: hash of the task's definition}}``,
-the union over the run's sessions (a resumed run never forgets a planned task).
+`plan.json`: ``{"tasks": [keys], "categories": {key: category}, "digests": {task id: hash of the task's
+definition}}``, the union over the run's sessions (a resumed run never forgets a planned task). A key is the task
+id, with `#trial<n>` after it from a task's second trial on (`results.model.result_key`).
 """
 
 from __future__ import annotations
@@ -125,7 +127,8 @@ def meta_problem(data: Any) -> str | None:
     """What makes parsed run.json content unusable (worded to follow the file's name), or None."""
     if not isinstance(data, dict):
         return "is not a JSON object"
-    for key, kind in (("sessions", list), ("engines", list), ("agent", dict), ("state", str), ("agent_key", str),
+    for key, kind in (("sessions", list), ("engines", list), ("agent", dict), ("card", dict), ("state", str),
+                      ("agent_key", str),
                       ("started", str), ("finished", str), ("heartbeat", str), ("host", str)):
         if data.get(key) is not None and not isinstance(data[key], kind):
             return f"has a {key!r} that is not {_KINDS[kind]}"
@@ -230,13 +233,14 @@ def plan_problem(run_dir: Path) -> str | None:
     return None
 
 
-def merge_plan(run_dir: Path, tasks: list[Any]) -> None:
-    """Add `tasks` (`Task` models) to plan.json: the plan is the union over the run's sessions."""
+def merge_plan(run_dir: Path, cases: list[tuple[str, Any]]) -> None:
+    """Add `cases` ((result key, `Task`) pairs: the key is the task id, with `#trial<n>` from the second trial on)
+    to plan.json: the plan is the union over the run's sessions. Categories are kept per key, digests per task."""
     plan = read_plan(run_dir)
     ids = set(plan["tasks"])
-    for t in tasks:
-        ids.add(t.id)
-        plan["categories"][t.id] = t.category
+    for key, t in cases:
+        ids.add(key)
+        plan["categories"][key] = t.category
         plan["digests"][t.id] = task_digest(t)
     run_dir.mkdir(parents=True, exist_ok=True)
     write_json_atomic(run_dir / "plan.json", {"tasks": sorted(ids), "categories": plan["categories"],

@@ -50,13 +50,15 @@ def write_json_atomic(path: Path, data: object) -> None:
         raise
 
 
-def task_dir(run_dir: Path, task_id: str) -> Path:
-    return run_dir / "tasks" / safe_name(task_id)
+def task_dir(run_dir: Path, key: str) -> Path:
+    """The folder of a result (`result_key`): `tasks/<safe id>`, `tasks/<safe id>_trial<n>` for the n-th trial."""
+    return run_dir / "tasks" / safe_name(key)
 
 
-def read_result(run_dir: Path, task_id: str) -> TaskResult | None:
-    """The stored result of a task, or None when absent or unreadable."""
-    path = task_dir(run_dir, task_id) / "result.json"
+def read_result(run_dir: Path, key: str) -> TaskResult | None:
+    """The stored result of a task's trial (`result_key`: the task id for the first), or None when absent or
+    unreadable."""
+    path = task_dir(run_dir, key) / "result.json"
     try:
         return TaskResult.model_validate_json(path.read_text())
     except (OSError, ValueError):
@@ -67,7 +69,7 @@ class TaskRecorder:
     """Appends trajectory lines and screenshots, and (re)writes result.json, for one task."""
 
     def __init__(self, run_dir: Path, result: TaskResult):
-        self.dir = task_dir(run_dir, result.task_id)
+        self.dir = task_dir(run_dir, result.key)
         if self.dir.exists():  # a rerun of this task replaces its earlier files
             for p in self.dir.iterdir():
                 if p.is_file():

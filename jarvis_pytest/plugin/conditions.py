@@ -1,0 +1,87 @@
+"""The run card of a run as it starts (`report/run_card.py`): made from the options, the agent and the backends,
+with the ids of the images on this machine; under `--reproduce RUN_DIR`, checked against RUN_DIR's card."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import pytest
+
+from jarvis_pytest.errors import ConfigError
+from jarvis_pytest.plugin.options import JarvisOptions
+from jarvis_pytest.report import run_card
+from jarvis_pytest.results import run_state
+
+if TYPE_CHECKING:
+    from jarvis_pytest.devices.backend import Backends
+
+
+def start_card(options: JarvisOptions, config: pytest.Config, agent_config: dict[str, Any], backends: "Backends",
+               argv: list[str]) -> dict[str, Any]:
+    """The card of the run about to start; with --reproduce, also what it reproduces (a ConfigError naming each
+    condition it does not meet, unless --allow-differences)."""
+    from jarvis_pytest.tasks.library import load_library
+
+    o = options
+    card = run_card.build(
+        agent=agent_config, limits=o.limits, trials=o.trials,
+        workers=int(config.getoption("numprocesses", None) or 0), instances=o.instances, library=o.library,
+        templates_digest=load_library(o.library).digest(), datasets=o.datasets, devices=_device_records(backends),
+        transfer=_transfer_record(o.transfer),
+        environment={"egress": o.allow_egress, "device_memory": o.device_memory, "device_cpus": o.device_cpus,
+                     "backend_options": o.backend_options, "docker_hosts": list(o.docker_hosts)},
+        argv=argv, keyword=config.getoption("keyword", "") or "", markers=config.getoption("markexpr", "") or "",
+        reproduces=o.reproduce)
+    return card if o.reproduce is None else _reproducing(o, card)
+
+
+def _reproducing(options: JarvisOptions, card: dict[str, Any]) -> dict[str, Any]:
+    source = options.reproduce
+    meta, bad = run_state.read_run_meta(source)
+    expected = (meta or {}).get("card")
+    if bad or not isinstance(expected, dict):
+        raise ConfigError(f"run.json {bad or 'has no run card (the run was made before run cards)'}",
+                          path=source / "run.json", field="--reproduce",
+                          fix="reproduce a run made by this version, or run its command again by hand")
+    found = run_card.reproduction_differences(expected, card)
+    if found and not options.allow_differences:
+        raise ConfigError("this run would not reproduce it:\n  " + "\n  ".join(found), path=source,
+                          field="--reproduce", fix="make the conditions match (the same images, backends, harness "
+                          "commit, agent settings), or pass --allow-differences to run anyway")
+    return {**card, "reproduces": {"run": (meta or {}).get("run_id") or source.name, "folder": str(source),
+                                   "differences": found}}
+
+
+def _local_image_id(ref: str) -> str | None:
+    """The id of image `ref` on this machine's engine, or None (not built or pulled yet, no engine)."""
+    try:
+        from jarvis_pytest.infra.engine import client
+
+        return client(timeout=10).images.get(ref).id
+    except Exception:
+        return None
+
+
+def _device_records(backends: "Backends") -> dict[str, dict[str, Any]]:
+    """Per platform: the backend that runs it (or why none does), its image and the device's fixed identity
+    (hostname, time zone, locale)."""
+    from jarvis_pytest.devices.platforms import PLATFORMS
+
+    out: dict[str, dict[str, Any]] = {}
+    for platform, facts in PLATFORMS.items():
+        fixed = {"hostname": facts.hostname, "timezone": facts.timezone, "locale": facts.locale}
+        if platform in backends:
+            b = backends[platform]
+            image_id = _local_image_id(b.image_ref)
+            out[platform] = {"backend": b.label, "stand_in": b.stand_in, "image": b.image_ref,
+                             "image_ids": [image_id] if image_id else [], **fixed}
+        else:
+            out[platform] = {"backend": None, "unavailable": backends.why_missing(platform), **fixed}
+    return out
+
+
+def _transfer_record(flavour: str | None) -> dict[str, Any]:
+    from jarvis_pytest.infra.transfer_server import transfer_server
+
+    server = transfer_server(flavour)
+    return {"flavour": server.flavour, "image": server.image, "image_id": _local_image_id(server.image)}
