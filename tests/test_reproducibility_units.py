@@ -200,16 +200,18 @@ def test_sampling_parameters_and_the_trials_seed_go_with_every_call():
         server.script(*[render_step("ubuntu", "Click it", {"action": "left_click"}, "the box")] * 2, model="planner")
         server.respond_with(lambda req: "[15, 15]", model="grounder")
         agent = load_agent("holo2", _options(server, planner_temperature="0.6"))
+        steps = []
         for trial in (1, 2):
             agent.reset(TaskContext("ubuntu-x[seed0]", "click", ("ubuntu",), trial=trial,
                                     seed=trial_seed("ubuntu-x[seed0]", trial)))
-            agent.act(shots, [])
+            steps.append(agent.act(shots, []))
         planner = [r.body for r in server.requests_for("planner")]
         grounder = [r.body for r in server.requests_for("grounder")]
         resized = load_agent("ui-tars-1.5", _options(server)).config()["model_input"]["grounder"]["sent"]["ubuntu"]
     assert resized == [1932, 1092]  # an absolute-pixel model gets the screenshot smart-resized
     assert [b["seed"] for b in planner] == [trial_seed("ubuntu-x[seed0]", n) for n in (1, 2)]
     assert [b["seed"] for b in grounder] == [b["seed"] for b in planner]
+    assert [s.extra["system_fingerprint"] for s in steps] == ["fp_fake"] * 2  # the server's build, per step
     assert all(b["temperature"] == 0.6 and b["top_p"] == 1.0 and b["max_tokens"] == 2048 for b in planner)
     assert all({"temperature", "top_p", "max_tokens"} <= set(b) for b in grounder)
     config = agent.config()

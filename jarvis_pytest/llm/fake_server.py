@@ -239,7 +239,7 @@ class FakeChatServer:
             message["reasoning_content"] = reply.reasoning
         return {"id": f"chatcmpl-fake-{self.received}", "object": "chat.completion", "created": 0,
                 "model": req.model, "choices": [{"index": 0, "message": message, "finish_reason": "stop"}],
-                "usage": usage}
+                "usage": usage, "system_fingerprint": "fp_fake"}
 
 
 class _Server(ThreadingHTTPServer):

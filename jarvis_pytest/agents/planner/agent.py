@@ -164,6 +164,8 @@ class PlannerGrounderAgent:
         result = self.planner.chat(self.planner_messages(observations, history), **self.planner_params,
                                    **self._seed())
         trace = _Trace(raw=result.text, model_seconds=result.seconds)
+        if result.raw.get("system_fingerprint"):  # the server's build behind the answer (OpenAI, vLLM)
+            trace.extra["system_fingerprint"] = str(result.raw["system_fingerprint"])
         _add_usage(trace.usage, result.usage, "planner")
         try:
             step = parse_planner_output(result.text)
