@@ -56,7 +56,7 @@ class DashboardServer(ThreadingHTTPServer):
     def start_play(self, task_id: str) -> dict[str, Any]:
         """Start `jarvis play` of `task_id` into a new run of the results directory; its player's address."""
         from jarvis_pytest.player.launch import start_play
-        from jarvis_pytest.plugin.options import new_run_id
+        from jarvis_pytest.results.run_state import new_run_id
 
         run = f"{new_run_id()}-play"
         play = start_play(task_id, self.store.root / run, log=self.store.root / ".play" / f"{run}.log")

@@ -14,7 +14,7 @@ from jarvis_pytest.player.launch import REPO_ROOT, PlayError, start_play
 
 
 def _new_results_dir() -> Path:
-    from jarvis_pytest.plugin.options import new_run_id
+    from jarvis_pytest.results.run_state import new_run_id
 
     return REPO_ROOT / "reports" / f"{new_run_id()}-play"
 

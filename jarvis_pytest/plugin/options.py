@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import os
 import re
-import uuid
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
 from pathlib import Path
 
 import pytest
@@ -252,6 +250,3 @@ def _backend_options(config: pytest.Config) -> dict[str, dict[str, str]]:
               if config.getoption(flag) is not None]
     return backend_option_pairs(pairs)
 
-
-def new_run_id() -> str:
-    return datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S-") + uuid.uuid4().hex[:6]

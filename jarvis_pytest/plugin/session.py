@@ -23,9 +23,10 @@ import pytest
 from jarvis_pytest.errors import ConfigError, InfrastructureError, JarvisError
 from jarvis_pytest.plugin import cases, conditions
 from jarvis_pytest.plugin.evaluation import failure_message, qc_message
-from jarvis_pytest.plugin.options import REPO_ROOT, JarvisOptions, new_run_id, read_options
+from jarvis_pytest.plugin.options import REPO_ROOT, JarvisOptions, read_options
 from jarvis_pytest.plugin.runner import RunContext, agent_key, run_task, task_platforms
 from jarvis_pytest.results import run_state, storage
+from jarvis_pytest.results.run_state import new_run_id
 from jarvis_pytest.results.model import TaskResult
 from jarvis_pytest.results.run_lock import RunLock
 from jarvis_pytest.plugin.availability import skip_reason

@@ -158,7 +158,7 @@ def run_reproduce(args: argparse.Namespace) -> int:
 
         if liveness(meta) == "running":
             raise ConfigError("the run is still going", path=run_dir, fix="wait for it to end")
-    from jarvis_pytest.plugin.options import new_run_id
+    from jarvis_pytest.results.run_state import new_run_id
 
     results_dir = Path(args.results_dir or REPO_ROOT / "reports" / new_run_id()).resolve()
     env = dict(os.environ)

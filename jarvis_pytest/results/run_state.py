@@ -32,6 +32,13 @@ HEARTBEAT_SECONDS = 10.0
 STALE_SECONDS = 60.0  # a heartbeat older than this from another host means its process is gone
 
 
+def new_run_id() -> str:
+    """A new run's id (its folder's name under reports/): UTC time of the start and six random hex digits."""
+    import uuid
+
+    return datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S-") + uuid.uuid4().hex[:6]
+
+
 def read_json(path: Path) -> dict[str, Any] | None:
     """A JSON object from `path`, or None when missing or unreadable."""
     try:
