@@ -250,3 +250,16 @@ def test_the_dashboard_shows_each_cell_over_trials_and_each_tasks_trials():
     assert dict(zip(cells["columns"], row))["pass_at_k"] == "100.0%"
     assert dict(zip(cells["columns"], row))["pass_all_k"] == "0.0%"
     assert tables["trials / tasks"]["rows"] == [["ubuntu-a[seed0]", "atomic", "1", "3"]]
+
+
+def test_input_files_of_every_composed_task_are_paths_of_their_own_platform():
+    """A transfer's inputs live on another device, and a slot's value may be another platform's path: neither is
+    asked of the subtask's device (a Windows device refuses a POSIX path as a bad request)."""
+    from jarvis_pytest.plugin.inputs import input_paths
+    from jarvis_pytest.tasks.dataset import load_tasks
+
+    tasks = load_tasks(sorted((Path(__file__).resolve().parents[1] / "tasks" / "composed").glob("*.json")))
+    paths = [(p, path) for t in tasks for p, path in input_paths(t.formatted_subtasks)]
+    assert len(paths) > 100
+    assert all((p == "windows") == (path[1:3] in (":\\", ":/")) for p, path in paths)
+    assert all(p == "windows" or path.startswith("/") for p, path in paths)

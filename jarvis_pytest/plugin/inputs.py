@@ -13,8 +13,10 @@ import hashlib
 from typing import Sequence
 
 from jarvis_pytest.devices.base import Device
+from jarvis_pytest.devices.platforms import spec
 from jarvis_pytest.evaluators.state import FinalState
 from jarvis_pytest.tasks.model import Subtask, UploadFile
+from jarvis_pytest.tasks.transfer import is_transfer
 
 
 def input_paths(subtasks: Sequence[Subtask]) -> list[tuple[str, str]]:
@@ -23,14 +25,19 @@ def input_paths(subtasks: Sequence[Subtask]) -> list[tuple[str, str]]:
     for sub in subtasks:
         found += [(step.platform or sub.platform, step.path) for step in sub.config if isinstance(step, UploadFile)]
         found += [(sub.platform, path) for path in sub.baseline]
-        found += [(sub.platform, str(slot.value)) for slot in sub.input.values()
-                  if slot.type.endswith("_file") and isinstance(slot.value, str) and _absolute(slot.value)]
+        if not is_transfer(sub.template):  # a transfer's inputs are the file an upstream subtask makes, elsewhere
+            found += [(sub.platform, str(slot.value)) for slot in sub.input.values()
+                      if slot.type.endswith("_file") and _absolute(sub.platform, slot.value)]
     return list(dict.fromkeys(found))
 
 
-def _absolute(path: str) -> bool:
-    """A path from a root: `/...` or a drive's `C:\\...`."""
-    return path.startswith("/") or (len(path) > 2 and path[1] == ":" and path[2] in "\\/")
+def _absolute(platform: str, path: object) -> bool:
+    """`path` is a path from a root on `platform`: `/...`, or a drive's `C:\\...` on Windows."""
+    if not isinstance(path, str):
+        return False
+    if spec(platform).path_style == "windows":
+        return len(path) > 2 and path[0].isalpha() and path[1] == ":" and path[2] in "\\/"
+    return path.startswith("/")
 
 
 def input_hashes(subtasks: Sequence[Subtask], devices: dict[str, Device],
