@@ -173,6 +173,18 @@ class Backend:
         return f"{self.platform} ({self.name})"
 
     @property
+    def identity(self) -> dict[str, Any]:
+        """Who its devices are, the same on any host: the container's hostname and the environment that sets their
+        time zone and locale (`PlatformSpec.hostname`, `timezone`, `locale`); empty for a platform without facts."""
+        from jarvis_pytest.devices.platforms import PLATFORMS
+
+        facts = PLATFORMS.get(self.platform)
+        if facts is None:
+            return {}
+        return {"hostname": facts.hostname,
+                "environment": {"TZ": facts.timezone, "LANG": facts.locale, "LC_ALL": facts.locale}}
+
+    @property
     def image_ref(self) -> str:
         """The image reference to run: a built image's tag, or the reference as given."""
         if self.image_kind == "built":

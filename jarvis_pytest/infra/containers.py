@@ -370,7 +370,7 @@ def start_holder(backend: "Backend", request: "BootRequest") -> PortHolder:
     c = start_container(request.docker, backend.image_ref, f"{request.name}-net", network=request.network,
                         labels={**request.labels, LABEL_ROLE: HOLDER_ROLE}, port=backend.port,
                         memory=HOLDER_MEMORY, pids=HOLDER_PIDS_LIMIT,
-                        options=fixed_identity(backend.platform, {"entrypoint": ["sleep", "infinity"]}))
+                        options=with_identity(backend.identity, {"entrypoint": ["sleep", "infinity"]}))
     request.started.append(c)
     if not request.egress:
         egress.cut_default_route(c)
@@ -406,23 +406,17 @@ class BootedDevice:
     backend: "Backend"
 
 
-def fixed_identity(platform: str, options: dict[str, Any], *, hostname: bool = True) -> dict[str, Any]:
-    """`options` (docker-py container options) with the platform's own hostname (unless `hostname` is False: a
-    device in a holder's namespace has the holder's) and its time zone and locale in the environment
-    (`PlatformSpec.hostname`, `timezone`, `locale`), so that nothing of the device comes from the host or from
-    Docker's random container id. A backend's own environment entries come first."""
-    from jarvis_pytest.devices.platforms import PLATFORMS
-
-    facts = PLATFORMS.get(platform)
-    if facts is None:
-        return options
+def with_identity(identity: dict[str, Any], options: dict[str, Any], *, hostname: bool = True) -> dict[str, Any]:
+    """`options` (docker-py container options) with a device's `identity` (`Backend.identity`: its hostname and the
+    environment entries that fix its time zone and locale; the backend's own environment entries come first), so
+    that nothing of the device comes from the host or from Docker's random container id. `hostname` False: a
+    device in a holder's namespace has the holder's."""
     given = options.get("environment") or {}
     if isinstance(given, (list, tuple)):
         given = dict(item.split("=", 1) if "=" in item else (item, "") for item in given)
-    out = {**options, "environment": {"TZ": facts.timezone, "LANG": facts.locale, "LC_ALL": facts.locale,
-                                      **given}}
-    if hostname:
-        out["hostname"] = facts.hostname
+    out = {**options, "environment": {**identity.get("environment", {}), **given}}
+    if hostname and identity.get("hostname"):
+        out["hostname"] = identity["hostname"]
     return out
 
 
@@ -430,7 +424,7 @@ def boot_container(backend: "Backend", request: BootRequest) -> BootedDevice:
     """The default boot of a backend: one container of its image on the task network, its control port published
     on 127.0.0.1, no way out unless egress is allowed, then `wait_ready` while the container is watched. With
     `request.holder` the container runs in the holder's network namespace instead, which has all of that."""
-    options = fixed_identity(backend.platform, dict(backend.container_options), hostname=request.holder is None)
+    options = with_identity(backend.identity, dict(backend.container_options), hostname=request.holder is None)
     if request.volumes:
         options["volumes"] = {**options.get("volumes", {}), **request.volumes}
     holder = request.holder
