@@ -54,7 +54,7 @@ def device_images(tmp_path_factory) -> dict[str, str]:
 def lifecycle(device_images):
     """A Lifecycle under a run id of its own; whatever the test leaves is removed after it."""
     from jarvis_pytest.infra.cleanup import cleanup
-    from jarvis_pytest.infra.lifecycle import Lifecycle
+    from jarvis_pytest.environments.lifecycle import Lifecycle
 
     run_id = f"test-{uuid.uuid4().hex[:8]}"
     yield Lifecycle(run_id, "test")
@@ -65,7 +65,7 @@ def lifecycle(device_images):
 def ubuntu_env(device_images):
     """One booted Ubuntu environment (device + transfer drive) shared by a module's tests."""
     from jarvis_pytest.infra.cleanup import cleanup
-    from jarvis_pytest.infra.lifecycle import Lifecycle
+    from jarvis_pytest.environments.lifecycle import Lifecycle
 
     run_id = f"test-{uuid.uuid4().hex[:8]}"
     env = Lifecycle(run_id, "test").boot(("ubuntu",))

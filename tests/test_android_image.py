@@ -543,7 +543,7 @@ def test_attach_skip_reason_names_the_app_and_the_commands_that_run_it(monkeypat
 
 
 def test_a_benchmark_run_on_a_phone_without_the_app_skips_the_task_and_says_how_to_run_it(tmp_path):
-    """The whole path, where the run decides what it can run (`plugin/availability.skip_reason` asks the attach
+    """The whole path, where the run decides what it can run (`harness/availability.skip_reason` asks the attach
     backend): `pytest tasks/test_atomic.py --android-backend attach` with a stand-in `adb` whose device (shell
     commands run in mksh) lists two packages; the Markor task is skipped, never failed, its result says why and
     the commands that would run it."""

@@ -118,7 +118,7 @@ def test_a_worker_runs_what_its_controller_chose_without_asking_the_machine_agai
 
 
 def test_lifecycle_uses_the_backends_it_is_given(device_images, monkeypatch):
-    from jarvis_pytest.infra.lifecycle import Lifecycle
+    from jarvis_pytest.environments.lifecycle import Lifecycle
 
     mine = _backend("mine")
     monkeypatch.setattr(B, "resolve_backends", lambda *a, **k: pytest.fail("resolved again"))
@@ -301,7 +301,7 @@ def test_each_backend_says_what_its_device_is():
 
 def test_a_device_is_asked_once_per_image_and_never_fails_a_task():
     from jarvis_pytest.devices.ubuntu import backend as U
-    from jarvis_pytest.infra.lifecycle import describe_device
+    from jarvis_pytest.environments.lifecycle import describe_device
 
     said = _Said(OS_RELEASE)
     key = f"sha256:test-{os.getpid()}-{id(said)}"

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from jarvis_pytest.infra.throughput import CONTAINERS_CPU
+from jarvis_pytest.bench.throughput import CONTAINERS_CPU
 
 pytestmark = pytest.mark.containers
 REPO = Path(__file__).resolve().parents[1]
@@ -44,7 +44,7 @@ def test_throughput_bench_runs_real_tasks_and_reports_every_figure(device_images
 
 
 def test_steady_state_is_read_where_every_worker_is_busy():
-    from jarvis_pytest.infra.throughput import steady_state
+    from jarvis_pytest.bench.throughput import steady_state
     from jarvis_pytest.results.model import TaskResult
 
     def task(worker: str, start: int, end: int, boot: float) -> TaskResult:
@@ -63,7 +63,7 @@ def test_steady_state_is_read_where_every_worker_is_busy():
 
 
 def test_every_run_gives_each_worker_the_same_number_of_tasks_by_default():
-    from jarvis_pytest.infra.throughput import PER_WORKER, render, tasks_for
+    from jarvis_pytest.bench.throughput import PER_WORKER, render, tasks_for
 
     # by default each worker of every run does the same work (the 1-worker run is not given more tasks a worker
     # than the others, which would spread its fixed costs thinner); --tasks N is N in every run

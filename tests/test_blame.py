@@ -1,4 +1,4 @@
-"""Who is to blame decides the status (issue 37): every row of `plugin/blame.py`'s table, with the exceptions and
+"""Who is to blame decides the status (issue 37): every row of `harness/blame.py`'s table, with the exceptions and
 device answers the harness really meets (httpx's, pydantic's, the model client's, an adapter's own)."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ from pydantic import ValidationError
 from jarvis_pytest.devices import actions as A
 from jarvis_pytest.devices.base import ActionOutcome
 from jarvis_pytest.errors import ConfigError, DeviceFault, InfrastructureError
-from jarvis_pytest.plugin.blame import MESSAGE_LIMIT, blame
-from jarvis_pytest.plugin.loop import NotAStep, StepDeadline
+from jarvis_pytest.harness.blame import MESSAGE_LIMIT, blame
+from jarvis_pytest.harness.loop import NotAStep, StepDeadline
 
 
 def _validation_error(data: dict) -> ValidationError:

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from jarvis_pytest.agents.oracle import PlanItem, oracle_plan
-from jarvis_pytest.plugin.chain_negatives import Carry, Substitute, chain_negatives
+from jarvis_pytest.harness.chain_negatives import Carry, Substitute, chain_negatives
 from jarvis_pytest.report.rollup import load_results
 from jarvis_pytest.tasks.compose import Draft, Link, build
 from jarvis_pytest.tasks.library import load_library

@@ -79,7 +79,7 @@ class FaultyEnvironments:
 
 def _run(tmp_path, environments):
     from jarvis_pytest.agents.builtin import OracleAgent
-    from jarvis_pytest.plugin.runner import RunContext, run_task
+    from jarvis_pytest.harness.runner import RunContext, run_task
     from jarvis_pytest.tasks.instances import atomic_task
     from jarvis_pytest.tasks.library import read_template_file
 
@@ -90,8 +90,8 @@ def _run(tmp_path, environments):
 
 @pytest.fixture
 def pool(device_images):
-    from jarvis_pytest.infra.lifecycle import Lifecycle
-    from jarvis_pytest.infra.pool import Pool
+    from jarvis_pytest.environments.lifecycle import Lifecycle
+    from jarvis_pytest.environments.pool import Pool
 
     run_id = f"test-faults-{uuid.uuid4().hex[:8]}"
     with Pool(Lifecycle(run_id, "test"), enabled=False) as p:

@@ -17,7 +17,7 @@ from PIL import Image, ImageStat
 
 from device_checks import check_concurrent_requests, check_refusals_keep_the_server_usable
 from jarvis_pytest.devices import actions as A
-from jarvis_pytest.devices.probe import boot
+from jarvis_pytest.bench.probe import boot
 
 pytestmark = pytest.mark.containers
 RECORDER = Path(__file__).parent / "data" / "device" / "event_recorder.py"

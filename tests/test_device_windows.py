@@ -50,7 +50,7 @@ def docker(device_images):
 
 @pytest.fixture(scope="module")
 def lifecycle(device_images):
-    from jarvis_pytest.infra.lifecycle import Lifecycle
+    from jarvis_pytest.environments.lifecycle import Lifecycle
 
     life = Lifecycle(RUN_ID, "test")
     yield life
@@ -759,8 +759,8 @@ def test_transfer_from_windows_to_ubuntu_through_the_drive(docker, lifecycle):
     from jarvis_pytest.agents.builtin import OracleAgent
     from jarvis_pytest.agents.oracle import brief
     from jarvis_pytest.agents.protocol import TaskContext
-    from jarvis_pytest.plugin.evaluation import evaluate_subtasks
-    from jarvis_pytest.plugin.setup_steps import run_setup
+    from jarvis_pytest.harness.evaluation import evaluate_subtasks
+    from jarvis_pytest.harness.setup_steps import run_setup
     from jarvis_pytest.tasks.instances import materialise
     from jarvis_pytest.tasks.model import BoundSlot
     from jarvis_pytest.tasks.transfer import transfer_template

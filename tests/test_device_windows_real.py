@@ -671,7 +671,7 @@ def test_the_os_is_read_from_what_the_device_says():
 @pytest.fixture(scope="module")
 def wine(docker, device_images):
     """A Wine device (the same control server and `cmd` as the real backend's)."""
-    from jarvis_pytest.devices.probe import boot
+    from jarvis_pytest.bench.probe import boot
 
     with boot(device_images["windows"], platform="windows", client=docker) as booted:
         yield booted.device

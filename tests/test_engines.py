@@ -134,7 +134,7 @@ def device_on(url: str, second_engine: str):
 
     from jarvis_pytest.infra.cleanup import cleanup
     from jarvis_pytest.infra.engine import client
-    from jarvis_pytest.infra.lifecycle import Lifecycle
+    from jarvis_pytest.environments.lifecycle import Lifecycle
 
     run_id = f"test-engine2-{uuid.uuid4().hex[:8]}"
     engines.check_on_this_machine(url)

@@ -255,7 +255,7 @@ def ubuntu_device(tmp_path_factory):
     """A real Ubuntu device booted from its image (built when missing or stale, one builder at a time)."""
     from filelock import FileLock
 
-    from jarvis_pytest.devices.probe import boot
+    from jarvis_pytest.bench.probe import boot
     from jarvis_pytest.infra import engine, images
 
     engine.ensure_engine()  # raises with the fix when no engine can be had: the test errors, loudly

@@ -15,7 +15,7 @@ from jarvis_pytest.evaluators.state import FinalState
 from jarvis_pytest.evaluators import transfer as transfer_module
 from jarvis_pytest.evaluators.file_facts import Entry, Facts
 from jarvis_pytest.evaluators.transfer import decide
-from jarvis_pytest.plugin.evaluation import evaluate_subtasks
+from jarvis_pytest.harness.evaluation import evaluate_subtasks
 from jarvis_pytest.tasks.compose import Draft, Link, build
 from jarvis_pytest.tasks.library import load_library
 from jarvis_pytest.tasks.transfer import TransferLinks, transfer_links

@@ -841,7 +841,7 @@ def test_end_program(dev):
 def test_the_harness_keeps_set_up_snapshots_for_the_evaluation(dev):
     """capture_baselines takes the evaluators' set-up snapshots beside the file baselines, and evaluate_subtasks
     hands them to the subtask: the program that must keep running is judged against the process set-up started."""
-    from jarvis_pytest.plugin.evaluation import capture_baselines, evaluate_subtasks
+    from jarvis_pytest.harness.evaluation import capture_baselines, evaluate_subtasks
 
     sub = instance("taskmgr_end_program", target_doc="C:\\Users\\user\\Documents\\budget.txt",
                    keep_doc="C:\\Users\\user\\Documents\\plans.txt")

@@ -127,7 +127,7 @@ def test_what_set_up_held_back_is_opened_from_a_command_line_first(tasks):
 def test_the_windows_set_up_opened_are_named_by_their_titles_when_the_agent_starts():
     """A composed task's subtask brings its window to the front through the GUI; where its template names no
     `window`, the window its set-up opened is found by the title it shows once set-up is done."""
-    from jarvis_pytest.plugin.setup_steps import run_setup, window_titles
+    from jarvis_pytest.harness.setup_steps import run_setup, window_titles
     from jarvis_pytest.tasks.model import Subtask
 
     class Desktop:

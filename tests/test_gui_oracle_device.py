@@ -13,8 +13,8 @@ from jarvis_pytest.agents.gui_oracle import GuiOracleAgent, find_target
 from jarvis_pytest.agents.oracle import brief
 from jarvis_pytest.agents.protocol import TaskContext
 from jarvis_pytest.devices.actions import Hotkey
-from jarvis_pytest.plugin.gui_check import FolderRecorder
-from jarvis_pytest.plugin.loop import LoopLimits, run_loop
+from jarvis_pytest.harness.gui_check import FolderRecorder
+from jarvis_pytest.harness.loop import LoopLimits, run_loop
 from jarvis_pytest.tasks.instances import materialise
 from jarvis_pytest.tasks.model import GuiTarget, TaskTemplate
 

@@ -69,8 +69,8 @@ def case_live_run(tmp: Path):
 
 
 def case_changed_task(tmp: Path):
-    from jarvis_pytest.plugin.runner import agent_key
-    from jarvis_pytest.plugin.loop import LoopLimits
+    from jarvis_pytest.harness.runner import agent_key
+    from jarvis_pytest.harness.loop import LoopLimits
 
     from jarvis_pytest.results.model import TaskResult
     from jarvis_pytest.results.writer import task_dir

@@ -15,7 +15,7 @@ import pytest
 
 from jarvis_pytest.infra import egress
 from jarvis_pytest.infra.cleanup import cleanup
-from jarvis_pytest.infra.lifecycle import Lifecycle
+from jarvis_pytest.environments.lifecycle import Lifecycle
 
 pytestmark = pytest.mark.containers
 

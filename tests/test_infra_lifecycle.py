@@ -18,14 +18,14 @@ from conftest import standin_backend, within_rules
 
 from jarvis_pytest.devices.backend import Backend, register_backend
 from jarvis_pytest.errors import InfrastructureError
-from jarvis_pytest.infra import lifecycle as lifecycle_module
+from jarvis_pytest.environments import lifecycle as lifecycle_module
 from jarvis_pytest.infra.cleanup import cleanup, orphan_sweep
 from jarvis_pytest.infra.containers import (LABEL_HOST, LABEL_PID, LABEL_PLATFORM, LABEL_ROLE, LABEL_RUN,
                                             LABEL_WORKER, BootPriority)
 from jarvis_pytest.infra.containers import labels as ctr_labels
-from jarvis_pytest.infra.lifecycle import Lifecycle, Limits
+from jarvis_pytest.environments.lifecycle import Lifecycle, Limits
 from jarvis_pytest.infra.networks import attached
-from jarvis_pytest.infra.pool import Pool, available_memory_mb
+from jarvis_pytest.environments.pool import Pool, available_memory_mb
 
 pytestmark = pytest.mark.containers
 
@@ -528,8 +528,8 @@ import sys
 sys.path.insert(0, sys.argv[2])
 from conftest import STANDIN_PLATFORMS, register_standin_backends
 register_standin_backends()
-from jarvis_pytest.infra.lifecycle import Lifecycle
-from jarvis_pytest.infra.pool import Pool
+from jarvis_pytest.environments.lifecycle import Lifecycle
+from jarvis_pytest.environments.pool import Pool
 pool = Pool(Lifecycle(sys.argv[1], "gw7"))
 pool.prewarm(STANDIN_PLATFORMS)
 assert pool.wait_prewarmed(STANDIN_PLATFORMS, timeout=60)
@@ -562,7 +562,7 @@ def test_one_orphan_sweep_of_an_engine_at_a_time():
 
 BOOT_AND_HANG = """
 import sys, time
-from jarvis_pytest.infra.lifecycle import Lifecycle
+from jarvis_pytest.environments.lifecycle import Lifecycle
 Lifecycle(sys.argv[1], "gw9").boot(("ubuntu",))
 print("booted", flush=True)
 time.sleep(600)

@@ -55,7 +55,7 @@ def small_ubuntu(device_images):
     import uuid
 
     from jarvis_pytest.infra.cleanup import cleanup
-    from jarvis_pytest.infra.lifecycle import Lifecycle, Limits
+    from jarvis_pytest.environments.lifecycle import Lifecycle, Limits
 
     run_id = f"test-{uuid.uuid4().hex[:8]}"
     env = Lifecycle(run_id, "test", Limits(memory=SMALL_MEMORY, cpus=SMALL_CPUS)).boot(("ubuntu",))
@@ -185,7 +185,7 @@ def test_a_device_that_spins_every_core_gets_no_more_than_its_limit(small_ubuntu
 
 
 def _available_mb() -> float:
-    from jarvis_pytest.infra.pool import available_memory_mb
+    from jarvis_pytest.environments.pool import available_memory_mb
 
     return available_memory_mb() or 0.0
 

@@ -10,7 +10,7 @@ import uuid
 import httpx
 import pytest
 
-from jarvis_pytest.infra.lifecycle import Lifecycle
+from jarvis_pytest.environments.lifecycle import Lifecycle
 from jarvis_pytest.infra.transfer import CopypartyClient, TransferClient
 
 pytestmark = pytest.mark.containers

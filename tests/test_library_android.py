@@ -167,9 +167,9 @@ def gate(sub, root: Path, steps=None):
     sys.path.insert(0, str(Path(__file__).parent))
     from android_sim import SimAndroid
 
-    from jarvis_pytest.plugin.evaluation import capture_baselines, evaluate_subtasks
-    from jarvis_pytest.plugin.negatives import apply_steps
-    from jarvis_pytest.plugin.setup_steps import run_setup
+    from jarvis_pytest.harness.evaluation import capture_baselines, evaluate_subtasks
+    from jarvis_pytest.harness.negatives import apply_steps
+    from jarvis_pytest.harness.setup_steps import run_setup
 
     device = SimAndroid(root, {8080: _free_port(), 8081: _free_port()})
     devices = {"android": device}

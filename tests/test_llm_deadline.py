@@ -21,7 +21,7 @@ from jarvis_pytest.llm import transport
 from jarvis_pytest.llm.client import ChatClient, user_message
 from jarvis_pytest.llm.deadline import deadline_at, remaining
 from jarvis_pytest.llm.fake_server import FakeChatServer, Reply, dribble
-from jarvis_pytest.plugin.loop import GRACE, decide
+from jarvis_pytest.harness.loop import GRACE, decide
 
 REPO = Path(__file__).resolve().parents[1]
 #: an answer that takes hours to dribble: without a deadline, a call (and a run's start-up check) never ends

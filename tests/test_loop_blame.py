@@ -17,8 +17,8 @@ import pytest
 from jarvis_pytest.agents.protocol import AgentStep
 from jarvis_pytest.devices import actions as A
 from jarvis_pytest.errors import InfrastructureError
-from jarvis_pytest.plugin.blame import AGENT_CRASH_LIMIT
-from jarvis_pytest.plugin.loop import LoopLimits, run_loop
+from jarvis_pytest.harness.blame import AGENT_CRASH_LIMIT
+from jarvis_pytest.harness.loop import LoopLimits, run_loop
 from jarvis_pytest.report.rollup import load_results
 from jarvis_pytest.results.model import TaskResult
 from jarvis_pytest.results.writer import TaskRecorder
@@ -295,7 +295,7 @@ def test_begin_bounds_the_agents_reset():
     """`begin`: a reset that raises is the agent's failure (a message, no exception); one that does not end within
     the step time limit is the endpoint's (raises StepDeadline, an infrastructure error) and never hangs the run."""
     from jarvis_pytest.agents.protocol import TaskContext
-    from jarvis_pytest.plugin.loop import LoopLimits, StepDeadline, begin
+    from jarvis_pytest.harness.loop import LoopLimits, StepDeadline, begin
 
     context = TaskContext(task_id="t", instruction="i", platforms=("ubuntu",))
     assert "SystemExit" in begin(_RaisingReset(), context, LoopLimits(step_timeout=5))

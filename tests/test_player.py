@@ -25,7 +25,7 @@ from jarvis_pytest.llm.deadline import deadline_at
 from jarvis_pytest.player import inputs as I
 from jarvis_pytest.player.agent import HumanAgent, ScreenView
 from jarvis_pytest.player.solution import gui_steps, save, with_placeholders
-from jarvis_pytest.plugin.loop import LoopLimits, StepDeadline, run_loop
+from jarvis_pytest.harness.loop import LoopLimits, StepDeadline, run_loop
 from jarvis_pytest.report.rollup import render_markdown, render_terminal, rollup
 from jarvis_pytest.results.model import StepRecord, TaskResult
 from jarvis_pytest.results.writer import TaskRecorder
@@ -444,7 +444,7 @@ def _loop(agent, tmp_path):
 
 
 def test_a_person_is_not_held_to_the_step_timeout_a_model_is(tmp_path, monkeypatch):
-    monkeypatch.setattr("jarvis_pytest.plugin.loop.GRACE", 0.1)  # no grace past the deadline: 0.3 s it is
+    monkeypatch.setattr("jarvis_pytest.harness.loop.GRACE", 0.1)  # no grace past the deadline: 0.3 s it is
     assert _loop(Slow(0.8, paced=True), tmp_path / "a").end_reason == "done"
     with pytest.raises(StepDeadline):
         _loop(Slow(0.8, paced=False), tmp_path / "b")

@@ -7,7 +7,7 @@ import io
 
 from PIL import Image
 
-from jarvis_pytest.plugin import idle
+from jarvis_pytest.harness import idle
 
 
 def _png(size, colour) -> bytes:

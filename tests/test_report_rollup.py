@@ -256,7 +256,7 @@ def test_invariants(items, rnd):
 
 
 def test_failure_modes_are_classified_from_verdicts_graph_and_trajectory():
-    from jarvis_pytest.report.failure_modes import classify
+    from jarvis_pytest.results.failure_modes import classify
 
     def v(i, ok, platform="ubuntu", template="t"):
         return SubtaskVerdict(index=i, template=template, platform=platform, passed=ok)

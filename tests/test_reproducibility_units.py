@@ -255,7 +255,7 @@ def test_the_dashboard_shows_each_cell_over_trials_and_each_tasks_trials():
 def test_input_files_of_every_composed_task_are_paths_of_their_own_platform():
     """A transfer's inputs live on another device, and a slot's value may be another platform's path: neither is
     asked of the subtask's device (a Windows device refuses a POSIX path as a bad request)."""
-    from jarvis_pytest.plugin.inputs import input_paths
+    from jarvis_pytest.harness.inputs import input_paths
     from jarvis_pytest.tasks.dataset import load_tasks
 
     tasks = load_tasks(sorted((Path(__file__).resolve().parents[1] / "tasks" / "composed").glob("*.json")))

@@ -306,7 +306,7 @@ def test_pytest_cases_make_atomic_instances_on_first_use(monkeypatch, pytestconf
     from types import SimpleNamespace
 
     from jarvis_pytest.plugin import cases
-    from jarvis_pytest.plugin.runner import task_platforms
+    from jarvis_pytest.harness.runner import task_platforms
     from jarvis_pytest.tasks import instances
 
     repo_tasks = Path(__file__).resolve().parents[1] / "tasks"

@@ -12,7 +12,7 @@ import pytest
 
 from jarvis_pytest.evaluators.ledger import DriveLedger
 from jarvis_pytest.infra import drive_ledger
-from jarvis_pytest.infra.lifecycle import TRANSFER_ROLE, Lifecycle
+from jarvis_pytest.environments.lifecycle import TRANSFER_ROLE, Lifecycle
 from jarvis_pytest.infra.transfer_server import drive_said
 
 pytestmark = pytest.mark.containers

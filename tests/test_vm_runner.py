@@ -369,7 +369,7 @@ def test_tasks_restore_in_parallel_from_a_memory_snapshot_under_tcg(device_image
     from jarvis_pytest.infra import egress
     from jarvis_pytest.infra.cleanup import cleanup
     from jarvis_pytest.infra.engine import client
-    from jarvis_pytest.infra.lifecycle import Lifecycle
+    from jarvis_pytest.environments.lifecycle import Lifecycle
 
     docker = client()
     t0 = time.monotonic()
@@ -477,7 +477,7 @@ def test_a_restore_refuses_a_state_saved_by_another_qemu(device_images):
     """The runner's own check (the host cannot know the runner image's QEMU): exit 2, one ConfigError."""
     from jarvis_pytest.devices.vm import testguest
     from jarvis_pytest.infra.cleanup import cleanup
-    from jarvis_pytest.infra.lifecycle import Lifecycle
+    from jarvis_pytest.environments.lifecycle import Lifecycle
     from jarvis_pytest.devices.backend import register_backend
 
     folder, _, _ = testguest.ensure_golden(commands=BEFORE_SNAPSHOT)

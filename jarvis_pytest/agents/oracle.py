@@ -5,7 +5,7 @@ subtask's first GUI step in a composed task its window (the template's `window`)
 file an upstream subtask made is opened first (`opens`: set-up held those steps back, the instruction asks for
 them). Every GUI step knows the window it acts on (`SubtaskWindows`): on a device that names windows (Windows) a
 subtask's window is one window, not a title, and it is checked to hold the foreground before each of its GUI
-actions. The quality gate changes plans to make near-miss wrong chains (`plugin/chain_negatives.py`) and carries
+actions. The quality gate changes plans to make near-miss wrong chains (`harness/chain_negatives.py`) and carries
 them out directly (`carry_out`); the agent carries the plan out through the harness's step loop.
 
 The oracle is the one agent that sees the solution and holds the devices, and it gets them through `brief`, not

@@ -29,6 +29,7 @@ from jarvis_pytest.agents.grounding import Grounder
 from jarvis_pytest.agents.planner import build_planner_grounder
 from jarvis_pytest.agents.protocol import Agent
 from jarvis_pytest.errors import ConfigError
+from jarvis_pytest.paths import AGENTS_DIR
 
 AgentFactory = Callable[[dict[str, Any]], Agent]
 
@@ -37,7 +38,6 @@ AgentFactory = Callable[[dict[str, Any]], Agent]
 BUILTIN: dict[str, AgentFactory] = dict(BUILTIN_AGENTS)
 
 #: The folder of adapter modules: the repository's top-level ``agents/``.
-AGENTS_DIR = Path(__file__).resolve().parents[2] / "agents"
 _MODULE_PREFIX = "jarvis_agents_"
 
 

@@ -127,7 +127,7 @@ class Backend:
     ready_timeout: float = 60.0                  # seconds from create until ready
     memory: str | None = "4g"                    # default memory limit of one device
     booted_memory_mb: int = 512                  # about what one freshly booted device holds: a pre-warm starts
-                                                 # only with this much free above the pool's reserve (`infra/pool.py`)
+                                                 # only with this much free above the pool's reserve (`environments/pool.py`)
     cpus: float | None = None                    # default CPU limit of one device
     stand_in: bool = False                       # not the real platform (e.g. Windows under Wine)
     drive_mount: str | None = None               # where the device mounts the task's drive storage, if it does

@@ -97,13 +97,13 @@ def _print_kept(hosts: list[str], removed: bool) -> None:
 
 
 def _bench_devices(args) -> int:
-    from jarvis_pytest.infra import bench
+    from jarvis_pytest.bench import devices as bench
 
     return bench.main(args)
 
 
 def _bench_throughput(args) -> int:
-    from jarvis_pytest.infra import throughput
+    from jarvis_pytest.bench import throughput
 
     return throughput.main(args)
 

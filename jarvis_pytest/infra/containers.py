@@ -15,13 +15,14 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Literal
+from typing import Any, Callable, Literal
 
 from jarvis_pytest.errors import ConfigError, InfrastructureError
 from jarvis_pytest.infra import egress
 
-if TYPE_CHECKING:
-    from jarvis_pytest.devices.backend import Backend
+# A "backend" here is a `devices.backend.Backend`, read by its attributes only (image_ref, port, identity,
+# container_options, platform, label, wait_ready): this layer sits below devices/ and imports nothing from it.
+Backend = Any
 
 LABEL_RUN = "org.jarvis.run"
 LABEL_WORKER = "org.jarvis.worker"
@@ -364,7 +365,7 @@ class PortHolder:
         return f"container:{self.container.id}"
 
 
-def start_holder(backend: "Backend", request: "BootRequest") -> PortHolder:
+def start_holder(backend: Backend, request: "BootRequest") -> PortHolder:
     """A new holder for `backend`'s devices on the request's network: its image, doing nothing but `sleep`, with
     the control port published and (unless egress is allowed) no default route."""
     c = start_container(request.docker, backend.image_ref, f"{request.name}-net", network=request.network,
@@ -403,7 +404,7 @@ class BootedDevice:
 
     container: Any
     url: str
-    backend: "Backend"
+    backend: Backend
 
 
 def with_identity(identity: dict[str, Any], options: dict[str, Any], *, hostname: bool = True) -> dict[str, Any]:
@@ -420,7 +421,7 @@ def with_identity(identity: dict[str, Any], options: dict[str, Any], *, hostname
     return out
 
 
-def boot_container(backend: "Backend", request: BootRequest) -> BootedDevice:
+def boot_container(backend: Backend, request: BootRequest) -> BootedDevice:
     """The default boot of a backend: one container of its image on the task network, its control port published
     on 127.0.0.1, no way out unless egress is allowed, then `wait_ready` while the container is watched. With
     `request.holder` the container runs in the holder's network namespace instead, which has all of that."""

@@ -25,8 +25,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from jarvis_pytest.errors import ConfigError, InfrastructureError
+from jarvis_pytest.paths import REPO_ROOT
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
 IMAGES_DIR = REPO_ROOT / "fixtures" / "images"
 HASH_LABEL = "org.jarvis.hash"
 NAME_LABEL = "org.jarvis.image"

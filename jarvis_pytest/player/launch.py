@@ -15,8 +15,8 @@ from pathlib import Path
 from typing import IO
 
 from jarvis_pytest.errors import ConfigError
+from jarvis_pytest.paths import REPO_ROOT
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
 URL_WAIT = 300.0  # seconds the player gets to listen: the task's devices boot and are set up first
 ATOMIC_ID = re.compile(r"(.+)\[seed(\d+)\]")
 TASK_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.\-\[\]]*")

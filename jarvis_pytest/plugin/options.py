@@ -13,10 +13,10 @@ from jarvis_pytest.devices.backend import ALIASES, BUILTIN, backend_option_pairs
 from jarvis_pytest.errors import ConfigError
 from jarvis_pytest.infra import engines
 from jarvis_pytest.infra.containers import PIDS_LIMIT, pids_limit
-from jarvis_pytest.infra.pool import PREWARM_RESERVE_MB
-from jarvis_pytest.plugin.loop import LoopLimits
+from jarvis_pytest.environments.pool import PREWARM_RESERVE_MB
+from jarvis_pytest.harness.loop import LoopLimits
+from jarvis_pytest.paths import REPO_ROOT
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
 BACKEND_OPTION = "--backend-option"
 BACKEND_OPTION_ALIASES = {"--android-serial": "android.serial", "--android-image": "android.image"}  # older flags
 

@@ -22,14 +22,14 @@ import pytest
 
 from jarvis_pytest.errors import ConfigError, InfrastructureError, JarvisError
 from jarvis_pytest.plugin import cases, conditions
-from jarvis_pytest.plugin.evaluation import failure_message, qc_message
+from jarvis_pytest.harness.evaluation import failure_message, qc_message
 from jarvis_pytest.plugin.options import REPO_ROOT, JarvisOptions, read_options
-from jarvis_pytest.plugin.runner import RunContext, agent_key, run_task, task_platforms
+from jarvis_pytest.harness.runner import RunContext, agent_key, run_task, task_platforms
 from jarvis_pytest.results import run_state, storage
 from jarvis_pytest.results.run_state import new_run_id
 from jarvis_pytest.results.model import TaskResult
 from jarvis_pytest.results.run_lock import RunLock
-from jarvis_pytest.plugin.availability import skip_reason
+from jarvis_pytest.harness.availability import skip_reason
 from jarvis_pytest.results.writer import now_iso, read_result, task_dir, write_json_atomic
 from jarvis_pytest.tasks.model import Task
 
@@ -346,12 +346,16 @@ class JarvisSession:
     # -- running --------------------------------------------------------------------------------------------
     def ensure_context(self) -> RunContext:
         if self.context is None:
-            from jarvis_pytest.plugin.environments import make_environments
+            from jarvis_pytest.harness.environments import make_environments
 
+            o = self.options
             self.context = RunContext(
                 run_dir=self.run_dir, agent=self.ensure_agent(),
-                environments=make_environments(self.options, self.backends,
-                                               run_id=run_state.resource_id(self.run_dir), worker=self.worker),
+                environments=make_environments(
+                    self.backends, run_id=run_state.resource_id(self.run_dir), worker=self.worker,
+                    keep_devices=o.keep_devices, device_memory=o.device_memory, device_cpus=o.device_cpus,
+                    transfer=o.transfer, egress=o.allow_egress, docker_hosts=o.docker_hosts, prewarm=o.prewarm,
+                    prewarm_reserve_mb=o.prewarm_reserve_mb),
                 limits=self.options.limits, keep_devices=self.options.keep_devices, on_keep=_print_kept,
                 qc=self.options.qc, egress=self.options.allow_egress,
             )

@@ -578,9 +578,9 @@ def render_markdown(s: Summary) -> str:
         out += _md_table(["Devices", "Tasks", "TSR", "SSR"],
                          [[str(b.devices), str(b.n), _pct_counts(b.tsr, b.k, b.n), _pct(b.ssr)] for b in s.by_devices])
     if s.failure_modes:
-        from jarvis_pytest.report.failure_modes import MODES
+        from jarvis_pytest.results.failure_modes import MODES
 
-        out += ["## Table 5. Failure modes of failed tasks (counts; report/failure_modes.py)", ""]
+        out += ["## Table 5. Failure modes of failed tasks (counts; results/failure_modes.py)", ""]
         cats = [c for c in CATEGORIES if c in s.failure_modes]
         out += _md_table(["Mode", *(_LABEL[c] for c in cats), "Total"],
                          [[m, *(str(s.failure_modes[c].get(m, 0)) for c in cats),

@@ -39,7 +39,8 @@ import sys
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
+from jarvis_pytest.paths import REPO_ROOT
+
 CARD_FORMAT = 1
 PACKAGES = ("pytest", "pytest-xdist", "docker", "pydantic", "httpx", "pillow")
 INFORMATIONAL = ("machine.", "selection.", "format", "reproduces")  # shown by `jarvis diff`, never a reason to refuse

@@ -53,10 +53,24 @@ class NegativeVerdict(BaseModel):
     error: str | None = None  # the negative's steps could not be applied (a broken negative is a violation too)
     verdicts: list[SubtaskVerdict] = Field(default_factory=list)
     device_faults: list[str] = Field(default_factory=list)  # faults of the devices, each tried again on fresh ones
-    # a composed task's broken chain (`plugin/chain_negatives.py`): the subtasks that must fail on it, and the steps
+    # a composed task's broken chain (`harness/chain_negatives.py`): the subtasks that must fail on it, and the steps
     # that failed because the chain is broken (expected; the rest of the plan went on)
     expect: list[int] | None = None
     step_errors: list[str] = Field(default_factory=list)
+
+    def violation(self) -> str | None:
+        """Why this negative violates the gate (it could not be applied, or the evaluators accept it; a composed
+        task's broken chain also when the subtask meant to catch it passes), or None."""
+        if self.error:
+            return f"negative {self.index} ({self.note}) could not be applied: {self.error.splitlines()[0]}"
+        if not self.passed:
+            return None
+        if self.expect is None:
+            return f"negative {self.index} passes ({self.kind}: {self.note}): the evaluators accept this wrong state"
+        held = [f"{i} ({self.verdicts[i].template})" for i in self.expect if self.verdicts[i].passed]
+        chain = self.kind.removeprefix("chain:")
+        return (f"broken chain {chain} ({self.note}) passes at subtask {', '.join(held)}" if held
+                else f"broken chain {chain} ({self.note}) passes the task")
 
 
 class GuiCheck(BaseModel):
@@ -149,7 +163,7 @@ class TaskResult(BaseModel):
     engine: str = ""  # the Docker engine the task's devices ran on: "local" or the --docker-host URL
     worker: str = ""  # the xdist worker that ran it ("gw0", …; "main" without xdist)
     edges: list[tuple[int, int]] = Field(default_factory=list)  # (upstream, downstream) subtask indices
-    failure_mode: str | None = None  # why a failed task failed (report/failure_modes.py)
+    failure_mode: str | None = None  # why a failed task failed (results/failure_modes.py)
     durations: dict[str, float] = Field(default_factory=dict)  # boot, setup, agent, evaluate, total (seconds)
     device_faults: list[str] = Field(default_factory=list)  # device faults (errors.DeviceFault) that made the task
     # run again on fresh devices before this result; the verdict is the last run's
@@ -162,7 +176,7 @@ class TaskResult(BaseModel):
     trial: int = 1  # which of the run's `--trials` this is (1 to K); every trial runs on fresh devices
     seed: int | None = None  # the seed handed to the agent (`trial_seed`: from the task id and the trial)
     # "platform:path" → SHA-256 of each input file as set-up left it on the device, before the agent's first step
-    # (`plugin/inputs.py`): the same instance gives the same bytes on any machine at any time
+    # (`harness/inputs.py`): the same instance gives the same bytes on any machine at any time
     inputs: dict[str, str] = Field(default_factory=dict)
 
     @property

@@ -20,6 +20,7 @@ from pydantic import ValidationError
 
 from jarvis_pytest.devices.actions import PLATFORMS
 from jarvis_pytest.errors import ConfigError
+from jarvis_pytest.paths import FIXTURE_FILES
 from jarvis_pytest.tasks.evaluator_args import check_evaluator_args, slot_samples
 from jarvis_pytest.tasks.instances import check_pattern, materialise, sample_inputs
 from jarvis_pytest.tasks.model import InputSlot, TaskTemplate
@@ -298,9 +299,6 @@ def _check_fills_of_fed_folders(tpl: TaskTemplate, types: Any, fail: Any) -> Non
             if slot is not None and slot.feedable and step.provides != name and types.is_subtype(slot.type, "directory"):
                 raise fail(f"config[{i}]", f"set-up writes into folder {name!r}, which an upstream subtask may feed",
                            f"mark the step \"provides\": \"{name}\", or set inputs.{name}.feedable to false")
-
-
-FIXTURE_FILES = Path(__file__).resolve().parents[2] / "fixtures" / "files"
 
 
 def fixture_problem(name: str, root: Path = FIXTURE_FILES, *, must_exist: bool = False) -> str | None:

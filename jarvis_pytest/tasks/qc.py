@@ -3,10 +3,10 @@
 For every task instance every evaluator must fail on the freshly set-up device, the task must fail on each of its
 near-miss wrong states (`negatives`: at least an `artefact` and one wrong, partial or damaging operation), it
 must pass after the oracle, and it must pass after its GUI solution (`gui_solution`: the agent's actions only, run
-by the `gui-oracle` on fresh devices; `plugin/gui_check.py`). A template that says the GUI cannot solve it on the
+by the `gui-oracle` on fresh devices; `harness/gui_check.py`). A template that says the GUI cannot solve it on the
 run's backend (`gui_infeasible`) shows the reason instead; one with neither ("no GUI solution yet") violates the
 gate on the platforms whose every template has one (`GUI_REQUIRED`: Ubuntu and Windows), and is counted elsewhere. A composed task (`--composed`) must
-fail on the fresh devices and pass after the oracle too, and each of its broken chains (`plugin/chain_negatives.py`)
+fail on the fresh devices and pass after the oracle too, and each of its broken chains (`harness/chain_negatives.py`)
 must fail it at the subtask meant to catch it. The gate runs as a benchmark run (`pytest tasks/test_atomic.py --qc`, so it has the harness's parallelism, pre-warming,
 results and --resume), then prints one row per instance and exits non-zero on any violation or error.
 """
@@ -20,10 +20,9 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+from jarvis_pytest.paths import REPO_ROOT
 from jarvis_pytest.report.rollup import load_results
 from jarvis_pytest.results.model import SubtaskVerdict, TaskResult
-
-REPO_ROOT = Path(__file__).resolve().parents[2]
 
 
 def _state(verdicts: list[SubtaskVerdict] | None, want: bool) -> str:
@@ -35,21 +34,6 @@ def _state(verdicts: list[SubtaskVerdict] | None, want: bool) -> str:
     return ("pass" if want else "fail") if good else ("FAIL" if want else "PASS")
 
 
-def negative_violation(n: Any) -> str | None:
-    """Why one negative violates the gate (it could not be applied, or the evaluators accept it; a composed task's
-    broken chain also when the subtask meant to catch it passes), or None."""
-    if n.error:
-        return f"negative {n.index} ({n.note}) could not be applied: {n.error.splitlines()[0]}"
-    if not n.passed:
-        return None
-    if n.expect is None:
-        return f"negative {n.index} passes ({n.kind}: {n.note}): the evaluators accept this wrong state"
-    held = [f"{i} ({n.verdicts[i].template})" for i in n.expect if n.verdicts[i].passed]
-    chain = n.kind.removeprefix("chain:")
-    return (f"broken chain {chain} ({n.note}) passes at subtask {', '.join(held)}" if held
-            else f"broken chain {chain} ({n.note}) passes the task")
-
-
 def _negatives(result: TaskResult) -> tuple[str, str]:
     """The negatives column ("2/2 fail", or how many PASS; for a composed task's broken chains "5/5 caught", or
     how many NOT CAUGHT) and the first violation's reason ("" when none)."""
@@ -57,10 +41,10 @@ def _negatives(result: TaskResult) -> tuple[str, str]:
     if negs is None:
         return "-", ""
     chains = any(n.expect is not None for n in negs)
-    rejected = sum(negative_violation(n) is None for n in negs)
+    rejected = sum(n.violation() is None for n in negs)
     good, bad = ("caught", "NOT CAUGHT") if chains else ("fail", "PASS")
     cell = f"{rejected}/{len(negs)} {good}" if rejected == len(negs) else f"{len(negs) - rejected}/{len(negs)} {bad}"
-    reason = next((why for n in negs if (why := negative_violation(n))), "")
+    reason = next((why for n in negs if (why := n.violation())), "")
     kinds = {n.kind for n in negs}
     if not reason and not chains and ("artefact" not in kinds or not kinds - {"artefact"}):
         return cell + " (too few)", ("needs negatives of kind `artefact` and of `wrong`/`partial`/`damage` "

@@ -16,10 +16,10 @@ from pathlib import Path
 from typing import Mapping
 
 from jarvis_pytest.errors import ConfigError
+from jarvis_pytest.paths import TYPES_FILE as REPO_TYPES_FILE
 
 FILE_TYPE = "file"
 TYPE_NAME = re.compile(r"^[a-z][a-z0-9_]*$")
-REPO_TYPES_FILE = Path(__file__).resolve().parents[2] / "tasks" / "types.json"
 
 
 class TypeSystem:

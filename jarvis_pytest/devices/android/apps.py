@@ -23,8 +23,10 @@ from pathlib import Path
 from typing import Any
 
 from jarvis_pytest.errors import ConfigError, InfrastructureError
+from jarvis_pytest.paths import IMAGES_DIR
 
-MANIFEST = Path(__file__).resolve().parents[3] / "fixtures" / "images" / "android" / "manifest.json"
+
+MANIFEST = IMAGES_DIR / "android" / "manifest.json"
 PIN_ARGS = {"emulator": "PIN_EMULATOR", "system_image": "PIN_SYSTEM_IMAGE"}  # manifest key → build argument
 APKS_ARG = "PIN_APKS"
 PACKAGES_TTL = 60.0          # seconds a device's package list is trusted (a run asks once per task)

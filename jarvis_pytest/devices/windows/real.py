@@ -54,8 +54,8 @@ from typing import Any, Mapping
 from jarvis_pytest.devices.base import run_read_only
 from jarvis_pytest.devices.vm import windows as vm_windows
 from jarvis_pytest.errors import ConfigError, InfrastructureError
+from jarvis_pytest.paths import REPO_ROOT
 
-REPO_ROOT = Path(__file__).resolve().parents[3]
 OEM_DIR = REPO_ROOT / "fixtures" / "images" / "windows-real" / "oem"
 TASKS_DIR = REPO_ROOT / "tasks"
 

@@ -5,13 +5,13 @@ import sys
 
 sys.modules["_wmi"] = None  # platform.system() would crash through _wmi under Wine; plain WinAPI answers instead
 
-import argparse  # noqa: E402
+import argparse
 
-from . import win32  # noqa: E402
+from . import win32
 
 win32.SetProcessDPIAware()  # coordinates and screenshots in physical pixels
 
-from .app import run_script_here, serve, wait_desktop  # noqa: E402
+from .app import run_script_here, serve, wait_desktop
 
 parser = argparse.ArgumentParser(prog="jarvis-control-server-windows")
 parser.add_argument("--host", default="0.0.0.0", help="inside the device; Docker publishes it on 127.0.0.1 only")

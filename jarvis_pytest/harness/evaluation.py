@@ -13,7 +13,6 @@ from jarvis_pytest.evaluators.state import FinalState
 from jarvis_pytest.evaluators.transfer import decide
 from jarvis_pytest.results.model import EvaluatorVerdict, SubtaskVerdict, TaskResult
 from jarvis_pytest.tasks.model import Edge, Subtask, Task
-from jarvis_pytest.tasks.qc import negative_violation
 from jarvis_pytest.tasks.transfer import TRANSFER_INPUT, TRANSFER_OUTPUT, TransferLinks, is_transfer, transfer_links
 
 
@@ -140,7 +139,7 @@ def qc_message(result: TaskResult) -> str:
         if held:
             lines.append(f"subtask {v.index} {v.template}: evaluators pass on the untouched device "
                          f"({'; '.join(f'{e.func}: {e.reason}' for e in held)})")
-    lines += [why for n in result.qc_negatives or [] if (why := negative_violation(n))]
+    lines += [why for n in result.qc_negatives or [] if (why := n.violation())]
     lines += [f"subtask {g.subtask} {g.template}: the GUI solution does not solve it: {g.reason}"
               for g in result.qc_gui or [] if g.state == "failed"]
     if not all(s.passed for s in result.subtasks) or not result.subtasks:

@@ -26,11 +26,11 @@ from pathlib import Path
 from typing import Any
 
 from jarvis_pytest.agents.planner import render_step
-from jarvis_pytest.infra.bench import percentile
+from jarvis_pytest.bench.devices import percentile
 from jarvis_pytest.llm.fake_server import FakeChatServer, Reply, RecordedRequest
+from jarvis_pytest.paths import REPO_ROOT
 from jarvis_pytest.results.run_state import resource_id
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
 TASK = "mousepad-write_note"
 TEMPLATE = "ubuntu-mousepad-write_note"
 CGROUP_MEMORY = Path("/sys/fs/cgroup/memory/docker")  # cgroup v1, cgroupfs driver (Debian's docker.io)

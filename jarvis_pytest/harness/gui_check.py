@@ -21,9 +21,9 @@ from jarvis_pytest.agents.gui_oracle import GuiOracleAgent, backend_name
 from jarvis_pytest.agents.oracle import brief
 from jarvis_pytest.agents.protocol import TaskContext
 from jarvis_pytest.errors import retry_device_faults
-from jarvis_pytest.plugin.evaluation import capture_baselines, evaluate_subtasks
-from jarvis_pytest.plugin.loop import LoopLimits, begin, run_loop
-from jarvis_pytest.plugin.setup_steps import run_setup, window_titles
+from jarvis_pytest.harness.evaluation import capture_baselines, evaluate_subtasks
+from jarvis_pytest.harness.loop import LoopLimits, begin, run_loop
+from jarvis_pytest.harness.setup_steps import run_setup, window_titles
 from jarvis_pytest.results.model import GuiCheck, StepRecord
 from jarvis_pytest.tasks.model import Task
 

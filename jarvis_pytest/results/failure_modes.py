@@ -4,7 +4,7 @@ failures by hand; here every failed task gets one mode, the first that applies):
 - `step limit`: the agent ran out of steps (`end_reason` max_steps);
 - `gave up`: the agent declared FAIL;
 - `agent error`: the agent's own code ended the task (`end_reason` agent_error: it exited, or crashed steps in a
-  row; `plugin/blame.py`);
+  row; `harness/blame.py`);
 - `done early`: the agent declared DONE with a failed subtask on whose device it never acted;
 - `transfer failed`: a file-transfer subtask failed (the file never got through the drive, or arrived wrong);
 - `context lost`: a subtask fed by an upstream subtask failed although everything upstream of it passed — the

@@ -2,7 +2,7 @@
 
 Execution errors (an invalid action, a device the task does not use, an agent that produced nothing usable, an
 exception of the agent's own code) are fed back into the agent's history, never raised: whose fault a problem is
-decides what it does (`plugin/blame.py`). The loop stops at DONE, FAIL, the step limit, the task's time limit or
+decides what it does (`harness/blame.py`). The loop stops at DONE, FAIL, the step limit, the task's time limit or
 the agent's own failure (`agent_error`: its code exited, or crashed `AGENT_CRASH_LIMIT` steps in a row). Each step
 is appended to the trajectory as it happens, and `progress` always holds the steps taken and the tokens spent,
 whatever ends the loop.
@@ -31,7 +31,7 @@ from jarvis_pytest.devices.actions import TERMINAL_TYPES, Action, parse_action
 from jarvis_pytest.devices.base import Device, Observation
 from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.llm.deadline import deadline_at
-from jarvis_pytest.plugin.blame import AGENT_CRASH_LIMIT, AGENT_ERROR, blame, describe
+from jarvis_pytest.harness.blame import AGENT_CRASH_LIMIT, AGENT_ERROR, blame, describe
 from jarvis_pytest.results.model import StepRecord
 from jarvis_pytest.results.writer import TaskRecorder
 

@@ -14,9 +14,9 @@ from typing import Any, Callable
 
 from jarvis_pytest.devices.actions import MoveTo
 from jarvis_pytest.infra.cleanup import cleanup
-from jarvis_pytest.infra.lifecycle import Lifecycle, Limits
+from jarvis_pytest.environments.lifecycle import Lifecycle, Limits
 from jarvis_pytest.infra.networks import KEEP_PER_WORKER
-from jarvis_pytest.infra.pool import Pool
+from jarvis_pytest.environments.pool import Pool
 
 TARGETS_MS = {"cold_start_ms": 3000, "screenshot_ms": 50, "action_ms": 20}  # DESIGN.md §6; p50
 

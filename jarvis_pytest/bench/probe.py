@@ -1,7 +1,7 @@
 """Boot one desktop device container straight from its image (docker SDK) and measure it: the device's own tests
 and quick measurements, independent of the task lifecycle in `infra/` (which is what runs benchmarks).
 
-    python -m jarvis_pytest.devices.probe [--boots 5] [--samples 50]
+    python -m jarvis_pytest.bench.probe [--boots 5] [--samples 50]
 
 prints what the device is (its system, read inside it), cold start (create → ready), screenshot, action and
 accessibility-tree latencies (p50/p90) as JSON.
@@ -119,7 +119,7 @@ def measure(image: str = "jarvis/ubuntu:latest", boots: int = 5, samples: int = 
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m jarvis_pytest.devices.probe", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(prog="python -m jarvis_pytest.bench.probe", description=__doc__.split("\n")[0])
     p.add_argument("--image", default="jarvis/ubuntu:latest")
     p.add_argument("--boots", type=int, default=5)
     p.add_argument("--samples", type=int, default=50)

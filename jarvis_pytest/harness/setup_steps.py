@@ -14,9 +14,8 @@ from typing import Sequence
 
 from jarvis_pytest.devices.base import Device
 from jarvis_pytest.errors import ConfigError, DeviceFault, InfrastructureError
+from jarvis_pytest.paths import FIXTURE_FILES
 from jarvis_pytest.tasks.model import Command, Launch, Open, SetupStep, Sleep, Subtask, UploadFile
-
-FIXTURE_FILES = Path(__file__).resolve().parents[2] / "fixtures" / "files"
 
 
 def _upload(device: Device, step: UploadFile) -> None:

@@ -8,8 +8,8 @@ from typing import Any, Sequence
 from jarvis_pytest.devices.actions import parse_action
 from jarvis_pytest.devices.base import Device
 from jarvis_pytest.errors import DeviceFault, retry_device_faults
-from jarvis_pytest.plugin.evaluation import capture_baselines, evaluate_subtasks
-from jarvis_pytest.plugin.setup_steps import run_setup
+from jarvis_pytest.harness.evaluation import capture_baselines, evaluate_subtasks
+from jarvis_pytest.harness.setup_steps import run_setup
 from jarvis_pytest.results.model import NegativeVerdict
 from jarvis_pytest.tasks.model import SolutionStep, Subtask
 

@@ -16,14 +16,14 @@ from jarvis_pytest.devices.actions import PLATFORMS
 from jarvis_pytest.infra.transfer_server import (TRANSFER_ALIAS, TRANSFER_FOLDER, TRANSFER_PASSWORD, TRANSFER_PORT,
                                                  TRANSFER_USER)
 from jarvis_pytest.errors import ConfigError, InfrastructureError, retry_device_faults
-from jarvis_pytest.plugin.evaluation import DriveWatch, capture_baselines, evaluate_subtasks
-from jarvis_pytest.plugin.inputs import input_hashes
-from jarvis_pytest.plugin import idle
-from jarvis_pytest.plugin.idle import idle_observation
-from jarvis_pytest.plugin.blame import AGENT_ERROR
-from jarvis_pytest.plugin.loop import LoopLimits, LoopOutcome, begin, run_loop
-from jarvis_pytest.plugin.setup_steps import run_setup, window_titles
-from jarvis_pytest.report.failure_modes import classify
+from jarvis_pytest.harness.evaluation import DriveWatch, capture_baselines, evaluate_subtasks
+from jarvis_pytest.harness.inputs import input_hashes
+from jarvis_pytest.harness import idle
+from jarvis_pytest.harness.idle import idle_observation
+from jarvis_pytest.harness.blame import AGENT_ERROR
+from jarvis_pytest.harness.loop import LoopLimits, LoopOutcome, begin, run_loop
+from jarvis_pytest.harness.setup_steps import run_setup, window_titles
+from jarvis_pytest.results.failure_modes import classify
 from jarvis_pytest.results.model import StepRecord, TaskResult, trial_seed
 from jarvis_pytest.results.writer import TaskRecorder
 from jarvis_pytest.tasks.model import Task
@@ -148,16 +148,16 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str], trial: int = 1) ->
             recorder.drive_ledger(turn.window())
         t_eval = time.monotonic()
         if ctx.qc and task.category == "atomic":  # negatives belong to templates
-            from jarvis_pytest.plugin.negatives import run_negatives
+            from jarvis_pytest.harness.negatives import run_negatives
 
             env.close()
             result.qc_negatives = run_negatives(subtasks, platforms, ctx.environments)
-            from jarvis_pytest.plugin.gui_check import GUI_FOLDER, run_gui_check
+            from jarvis_pytest.harness.gui_check import GUI_FOLDER, run_gui_check
 
             result.qc_gui = run_gui_check(task, platforms, ctx.environments, result.backends, ctx.limits,
                                           recorder.dir / GUI_FOLDER)
         elif ctx.qc and any(is_transfer(s.template) for s in subtasks):  # a composed task's broken chains
-            from jarvis_pytest.plugin.chain_negatives import run_chain_negatives
+            from jarvis_pytest.harness.chain_negatives import run_chain_negatives
 
             env.close()
             result.qc_negatives = run_chain_negatives(task, platforms, ctx.environments)

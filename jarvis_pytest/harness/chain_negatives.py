@@ -25,8 +25,8 @@ from typing import Any, Sequence
 
 from jarvis_pytest.agents.oracle import PlanItem, SubtaskWindows, carry_out, oracle_plan
 from jarvis_pytest.errors import retry_device_faults
-from jarvis_pytest.plugin.evaluation import DriveWatch, capture_baselines, evaluate_subtasks
-from jarvis_pytest.plugin.setup_steps import run_setup
+from jarvis_pytest.harness.evaluation import DriveWatch, capture_baselines, evaluate_subtasks
+from jarvis_pytest.harness.setup_steps import run_setup
 from jarvis_pytest.results.model import NegativeVerdict
 from jarvis_pytest.tasks.model import Task
 from jarvis_pytest.tasks.transfer import TRANSFER_INPUT, TRANSFER_OUTPUT, is_transfer, transfer_links

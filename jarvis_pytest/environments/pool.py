@@ -15,7 +15,7 @@ from jarvis_pytest.errors import InfrastructureError
 from jarvis_pytest.infra.containers import BootPriority
 
 if TYPE_CHECKING:  # annotations only: the plugin's options read PREWARM_RESERVE_MB without the lifecycle's imports
-    from jarvis_pytest.infra.lifecycle import Lifecycle, TaskEnvironment
+    from jarvis_pytest.environments.lifecycle import Lifecycle, TaskEnvironment
 
 # Memory a pre-warm leaves free for the running tasks (MB, --prewarm-reserve-mb): their applications grow as
 # they open documents, browsers and images, and a pre-warm that took that memory would starve them.
