@@ -3,7 +3,7 @@ with the ids of the images on this machine; under `--reproduce RUN_DIR`, checked
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Callable
 
 import pytest
 
@@ -23,15 +23,15 @@ def start_card(options: JarvisOptions, config: pytest.Config, agent_config: dict
     from jarvis_pytest.tasks.library import load_library
 
     o = options
+    image_id = _image_ids()
     card = run_card.build(
         agent=agent_config, limits=o.limits, trials=o.trials,
         workers=int(config.getoption("numprocesses", None) or 0), instances=o.instances, library=o.library,
-        templates_digest=load_library(o.library).digest(), datasets=o.datasets, devices=_device_records(backends),
-        transfer=_transfer_record(o.transfer),
+        templates_digest=load_library(o.library).digest(), datasets=o.datasets, devices=_device_records(backends, image_id),
+        transfer=_transfer_record(o.transfer, image_id),
         environment={"egress": o.allow_egress, "device_memory": o.device_memory, "device_cpus": o.device_cpus,
                      "backend_options": o.backend_options, "docker_hosts": list(o.docker_hosts)},
-        argv=argv, keyword=config.getoption("keyword", "") or "", markers=config.getoption("markexpr", "") or "",
-        reproduces=o.reproduce)
+        argv=argv, keyword=config.getoption("keyword", "") or "", markers=config.getoption("markexpr", "") or "")
     return card if o.reproduce is None else _reproducing(o, card)
 
 
@@ -52,17 +52,26 @@ def _reproducing(options: JarvisOptions, card: dict[str, Any]) -> dict[str, Any]
                                    "differences": found}}
 
 
-def _local_image_id(ref: str) -> str | None:
-    """The id of image `ref` on this machine's engine, or None (not built or pulled yet, no engine)."""
+def _image_ids() -> Callable[[str], str | None]:
+    """A lookup of an image's id on this machine's engine (None: not built or pulled yet, or no engine), on one
+    client."""
     try:
         from jarvis_pytest.infra.engine import client
 
-        return client(timeout=10).images.get(ref).id
+        docker = client(timeout=10)
     except Exception:
-        return None
+        return lambda ref: None
+
+    def image_id(ref: str) -> str | None:
+        try:
+            return docker.images.get(ref).id
+        except Exception:
+            return None
+
+    return image_id
 
 
-def _device_records(backends: "Backends") -> dict[str, dict[str, Any]]:
+def _device_records(backends: "Backends", image_id: Callable[[str], str | None]) -> dict[str, dict[str, Any]]:
     """Per platform: the backend that runs it (or why none does), its image and the device's fixed identity
     (hostname, time zone, locale)."""
     from jarvis_pytest.devices.platforms import PLATFORMS
@@ -72,16 +81,16 @@ def _device_records(backends: "Backends") -> dict[str, dict[str, Any]]:
         fixed = {"hostname": facts.hostname, "timezone": facts.timezone, "locale": facts.locale}
         if platform in backends:
             b = backends[platform]
-            image_id = _local_image_id(b.image_ref)
+            found = image_id(b.image_ref)
             out[platform] = {"backend": b.label, "stand_in": b.stand_in, "image": b.image_ref,
-                             "image_ids": [image_id] if image_id else [], **fixed}
+                             "image_ids": [found] if found else [], **fixed}
         else:
             out[platform] = {"backend": None, "unavailable": backends.why_missing(platform), **fixed}
     return out
 
 
-def _transfer_record(flavour: str | None) -> dict[str, Any]:
+def _transfer_record(flavour: str | None, image_id: Callable[[str], str | None]) -> dict[str, Any]:
     from jarvis_pytest.infra.transfer_server import transfer_server
 
     server = transfer_server(flavour)
-    return {"flavour": server.flavour, "image": server.image, "image_id": _local_image_id(server.image)}
+    return {"flavour": server.flavour, "image": server.image, "image_id": image_id(server.image)}

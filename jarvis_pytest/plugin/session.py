@@ -446,14 +446,17 @@ class JarvisSession:
         if self.is_controller and self.state is not None:
             interrupted = self.interrupted or int(exitstatus) == int(pytest.ExitCode.INTERRUPTED)
             try:
+                from jarvis_pytest.report.rollup import load_results
+
+                results, _ = load_results(self.run_dir)  # read once: for the run card and the summary
                 self.state.finish(interrupted or self.storage_failure is not None, int(exitstatus),
-                                  **self._finished_card())
+                                  **self._finished_card(results))
                 if (self.new_run and not (self.run_dir / "plan.json").exists()
                         and not (self.run_dir / "tasks").exists()):
                     (self.run_dir / "run.json").unlink(missing_ok=True)  # nothing was selected: no empty run left
                     self.state = None
                 else:
-                    self.summary = self.write_summary()
+                    self.summary = self.write_summary(results)
             except OSError as exc:  # the folder filled or went read-only: say so once; the devices still go
                 self._storage_failed(exc)
         outcome = yield
@@ -467,15 +470,15 @@ class JarvisSession:
             _remove_run_resources(run_id, self.options.docker_hosts)
         self.release_results_folder()
 
-    def _finished_card(self) -> dict[str, Any]:
-        """{"card": the run card with what the devices turned out to be} (nothing for a run without a card)."""
+    def _finished_card(self, results: list[TaskResult]) -> dict[str, Any]:
+        """{"card": the run card with what the devices of `results` turned out to be} (nothing for a run without a
+        card)."""
         card = self.state.meta.get("card") if self.state is not None else None
         if not card:
             return {}
-        from jarvis_pytest.report.rollup import load_results
         from jarvis_pytest.report.run_card import with_results
 
-        return {"card": with_results(card, load_results(self.run_dir)[0])}
+        return {"card": with_results(card, results)}
 
     def _storage_failed(self, exc: OSError) -> None:
         """One line on stderr, once, when the end of the run (run.json, the summary, report.html) could not be
@@ -491,11 +494,10 @@ class JarvisSession:
     def pytest_unconfigure(self, config: pytest.Config) -> None:
         self.release_results_folder()  # a session that ended before its finish (the lock also dies with us)
 
-    def write_summary(self):
-        """summary.json and summary.md over every result of the run on disk and every task it planned."""
-        from jarvis_pytest.report.rollup import load_results, write_summary
+    def write_summary(self, results: list[TaskResult]):
+        """summary.json and summary.md over `results` (every result of the run on disk) and every task it planned."""
+        from jarvis_pytest.report.rollup import write_summary
 
-        results, _ = load_results(self.run_dir)
         planned = run_state.read_plan(self.run_dir)["categories"]
         agent = (self.state.meta.get("agent") if self.state else None) or (results[0].agent if results else {})
         return write_summary(self.run_dir, results, agent, planned=planned)

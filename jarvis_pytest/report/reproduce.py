@@ -24,7 +24,8 @@ from jarvis_pytest.report.run_card import REPO_ROOT, differences, informational
 from jarvis_pytest.results.run_state import read_run_meta
 
 SELECTION_OPTIONS = ("-k", "-m")  # replaced by the plan of the run reproduced
-KEY_OPTIONS = {"--planner-api-key": "JARVIS_PLANNER_API_KEY", "--grounder-api-key": "JARVIS_GROUNDER_API_KEY"}
+# each model's key option → the variable the harness also reads it from (`plugin/options.py`)
+KEY_OPTIONS = {f"--{role}-api-key": f"JARVIS_{role.upper()}_API_KEY" for role in ("planner", "grounder")}
 
 
 def read_card(run_dir: Path) -> tuple[dict[str, Any], dict[str, Any]]:

@@ -200,12 +200,17 @@ class _Task:
         self.ratio = math.fsum(r.passed_subtasks / len(r.subtasks) if r.subtasks else 0.0 for r in trials) / self.trials
 
 
-def _tasks(results: Sequence[TaskResult]) -> list[_Task]:
-    """One `_Task` per task id, in id order, over its results (one per trial)."""
+def _by_task(results: Sequence[TaskResult]) -> dict[str, list[TaskResult]]:
+    """Each task id's results (one per trial), in id order."""
     by_id: dict[str, list[TaskResult]] = {}
     for r in results:
         by_id.setdefault(r.task_id, []).append(r)
-    return [_Task(by_id[tid]) for tid in sorted(by_id)]
+    return dict(sorted(by_id.items()))
+
+
+def _tasks(results: Sequence[TaskResult]) -> list[_Task]:
+    """One `_Task` per task id, in id order, over its results (one per trial)."""
+    return [_Task(trials) for trials in _by_task(results).values()]
 
 
 def _interval(stats: list[float], level: float) -> tuple[float, float]:
@@ -360,10 +365,7 @@ def _pass_k(n: int, c: int, k: int) -> tuple[float, float]:
 
 
 def _trial_cell(name: str, results: list[TaskResult], k: int, seed: int, n_boot: int) -> TrialCell:
-    by_id: dict[str, list[TaskResult]] = {}
-    for r in results:
-        by_id.setdefault(r.task_id, []).append(r)
-    tasks = [by_id[t] for t in sorted(by_id)]
+    tasks = list(_by_task(results).values())
     if not tasks:
         return TrialCell(tasks=0)
     share = [sum(r.status == "passed" for r in rs) / len(rs) for rs in tasks]
@@ -389,11 +391,8 @@ def _trials(done: dict[str, list[TaskResult]], k: int, seed: int, n_boot: int) -
     groups.update({f"composed/{c}": done[c] for c in COMPOSED})
     groups["composed/overall"] = [r for c in COMPOSED for r in done[c]]
     groups["all"] = [r for c in CATEGORIES for r in done[c]]
-    by_id: dict[str, list[TaskResult]] = {}
-    for r in groups["all"]:
-        by_id.setdefault(r.task_id, []).append(r)
     tasks = [TrialTask(task_id=t, category=rs[0].category.lower(), passed=sum(r.status == "passed" for r in rs),
-                       counted=len(rs)) for t, rs in sorted(by_id.items())]
+                       counted=len(rs)) for t, rs in _by_task(groups["all"]).items()]
     return Trials(k=k, cells={name: _trial_cell(name, rs, k, seed, n_boot) for name, rs in groups.items()},
                   tasks=tasks, unstable=[t.task_id for t in tasks if 0 < t.passed < t.counted])
 

@@ -19,13 +19,15 @@ The card (format 1)::
                 provenance (a VM's golden and snapshot), hostname, timezone, locale; `transfer`: the drive's
                 flavour and image
     environment egress, device_memory, device_cpus, backend options as given, docker_hosts
-    selection   argv (the command line, secrets hidden, without --results-dir/--resume/--same-tasks-as),
-                invocation (the folder it ran in, relative to the checkout), keyword (-k), markers (-m),
-                reproduces (the run whose plan it ran)
+    selection   argv (the command line, secrets hidden, without --results-dir, --resume, --reproduce,
+                --allow-differences), invocation (the folder it ran in, relative to the checkout), keyword (-k),
+                markers (-m)
+    reproduces  with --reproduce only: the run reproduced (`run`, `folder`) and the `differences` allowed
     machine     cpus, memory_gb, system, kernel: what the run ran on (shown by `jarvis diff`, never a reason for
                 `jarvis reproduce` to refuse)
 
-Conditions are every key but `machine.*` and `selection.*` (what was selected is pinned by `tasks.plan_digest`).
+Conditions are every key but `machine.*`, `selection.*` and `reproduces.*` (what was selected is pinned by
+`tasks.plan_digest`).
 """
 
 from __future__ import annotations
@@ -157,8 +159,8 @@ def plan_digest(keys: Iterable[str], digests: Mapping[str, str]) -> str:
 
 def build(*, agent: dict[str, Any], limits: Any, trials: int, workers: int, instances: int, library: Path,
           templates_digest: str, datasets: list[Path], devices: dict[str, dict[str, Any]],
-          transfer: dict[str, Any], environment: dict[str, Any], argv: list[str], keyword: str, markers: str,
-          reproduces: Path | None) -> dict[str, Any]:
+          transfer: dict[str, Any], environment: dict[str, Any], argv: list[str], keyword: str,
+          markers: str) -> dict[str, Any]:
     """The card of a run about to start (see the module docstring); the plan and what the devices are follow."""
     return {
         "format": CARD_FORMAT,
@@ -172,7 +174,7 @@ def build(*, agent: dict[str, Any], limits: Any, trials: int, workers: int, inst
         "devices": {**devices, "transfer": transfer},
         "environment": environment,
         "selection": {"argv": replay_argv(argv), "invocation": relative(Path.cwd()), "keyword": keyword,
-                      "markers": markers, "reproduces": str(reproduces) if reproduces else None},
+                      "markers": markers},
         "machine": machine(),
     }
 
