@@ -523,7 +523,8 @@ def test_a_trajectory_becomes_plain_gui_steps_with_its_pace():
                      {"type": "WAIT", "seconds": 1.0},  # 0.1 s recorded: a second at least (SETTLE)
                      {"type": "TYPING", "text": "{{old_word}}", "note": "recorded: step 2"},
                      {"type": "WAIT", "seconds": 2.0},  # the observation's time counts: the device had it too
-                     {"type": "CLICK", "x": 10, "y": 20, "note": "recorded: step 5"}]
+                     {"type": "CLICK", "x": 10, "y": 20, "note": "recorded: step 5"},
+                     {"type": "WAIT", "seconds": 3.0}]  # before DONE: the person saw the click take effect
     assert any("step 3 (CLICK) left out: the device refused it" in n for n in notes)
 
 

@@ -9,7 +9,8 @@ template rather than of the one instance played:
 - **Placeholders**: where typed text holds a slot's value of the instance (or the name or stem of a path value),
   that part becomes the slot's placeholder (`{{new_word}}`, `{{renamed_file.name}}`), kept only where rendering it
   back gives exactly the text typed; so another instance types its own values.
-- **Pace**: before each action but the first a `WAIT` of as long as the device had between the previous action
+- **Pace**: before each action but the first, and before the DONE that ends the recording (the person saw their
+  last action, a save, take effect), a `WAIT` of as long as the device had between the previous action
   and this one in the recording (its observation and the person's decision), and never under `SETTLE` seconds:
   a person waits for a dialog to open, while the GUI oracle acts at once, and on a loaded machine the dialog a
   person saw open in 0.3 s may take a second (`max_wait` seconds at most, default 5). Pixel steps replayed at a
@@ -87,14 +88,15 @@ def gui_steps(records: list[StepRecord], values: Mapping[str, Any], *,
         if not action:
             continue
         kind = action.get("type")
+        if kind == "DONE" and steps:  # the person saw the last action take effect (a save) before saying done
+            steps.append({"type": "WAIT", "seconds": _pace(rec, max_wait)})
         if kind in ENDS:
             continue
         if rec.error:
             notes.append(f"step {rec.index} ({kind}) left out: the device refused it ({rec.error})")
             continue
         if kind != "WAIT" and steps:
-            gap = (rec.observe_ms + rec.agent_ms) / 1000
-            steps.append({"type": "WAIT", "seconds": round(max(SETTLE, min(gap, max_wait)), 1)})
+            steps.append({"type": "WAIT", "seconds": _pace(rec, max_wait)})
         step = {k: v for k, v in action.items() if v is not None}
         if kind == "TYPING":
             text = with_placeholders(step["text"], values)
@@ -104,6 +106,12 @@ def gui_steps(records: list[StepRecord], values: Mapping[str, Any], *,
         step["note"] = f"recorded: step {rec.index}"
         steps.append(step)
     return steps, notes
+
+
+def _pace(rec: StepRecord, max_wait: float) -> float:
+    """The WAIT before a recorded step: as long as the device had before it (its observation and the person's
+    decision), between SETTLE and `max_wait` seconds."""
+    return round(max(SETTLE, min((rec.observe_ms + rec.agent_ms) / 1000, max_wait)), 1)
 
 
 def read_run(task_dir: Path) -> tuple[TaskResult, list[StepRecord]]:
