@@ -10,7 +10,6 @@ import pytest
 from jarvis_pytest.errors import ConfigError
 from jarvis_pytest.plugin.options import JarvisOptions
 from jarvis_pytest.report import run_card
-from jarvis_pytest.results import run_state
 
 if TYPE_CHECKING:
     from jarvis_pytest.devices.backend import Backends
@@ -37,18 +36,13 @@ def start_card(options: JarvisOptions, config: pytest.Config, agent_config: dict
 
 def _reproducing(options: JarvisOptions, card: dict[str, Any]) -> dict[str, Any]:
     source = options.reproduce
-    meta, bad = run_state.read_run_meta(source)
-    expected = (meta or {}).get("card")
-    if bad or not isinstance(expected, dict):
-        raise ConfigError(f"run.json {bad or 'has no run card (the run was made before run cards)'}",
-                          path=source / "run.json", field="--reproduce",
-                          fix="reproduce a run made by this version, or run its command again by hand")
+    meta, expected = run_card.read_card(source, field="--reproduce")
     found = run_card.reproduction_differences(expected, card)
     if found and not options.allow_differences:
         raise ConfigError("this run would not reproduce it:\n  " + "\n  ".join(found), path=source,
                           field="--reproduce", fix="make the conditions match (the same images, backends, harness "
                           "commit, agent settings), or pass --allow-differences to run anyway")
-    return {**card, "reproduces": {"run": (meta or {}).get("run_id") or source.name, "folder": str(source),
+    return {**card, "reproduces": {"run": meta.get("run_id") or source.name, "folder": str(source),
                                    "differences": found}}
 
 

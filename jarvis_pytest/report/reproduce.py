@@ -20,25 +20,12 @@ from pathlib import Path
 from typing import Any
 
 from jarvis_pytest.errors import ConfigError
-from jarvis_pytest.report.run_card import REPO_ROOT, differences, informational
-from jarvis_pytest.results.run_state import read_run_meta
+from jarvis_pytest.report.run_card import REPO_ROOT, differences, informational, read_card
 
 SELECTION_OPTIONS = ("-k", "-m")  # replaced by the plan of the run reproduced
 # each model's key option → the variable the harness also reads it from (`plugin/options.py`)
 KEY_OPTIONS = {f"--{role}-api-key": f"JARVIS_{role.upper()}_API_KEY" for role in ("planner", "grounder")}
 
-
-def read_card(run_dir: Path) -> tuple[dict[str, Any], dict[str, Any]]:
-    """(run.json, its card) of `run_dir`; a ConfigError naming the file when there is none."""
-    meta, bad = read_run_meta(run_dir)
-    if bad or meta is None:
-        raise ConfigError(f"run.json {bad or 'is missing'}", path=Path(run_dir) / "run.json",
-                          fix="give the folder of a run (reports/<run id>)")
-    card = meta.get("card")
-    if not isinstance(card, dict):
-        raise ConfigError("run.json has no run card: the run was made before run cards were written",
-                          path=Path(run_dir) / "run.json", fix="run its command (run.json's sessions[].argv) again")
-    return meta, card
 
 
 def _without_selection(argv: list[str]) -> list[str]:

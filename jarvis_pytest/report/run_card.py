@@ -41,7 +41,9 @@ import sys
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
+from jarvis_pytest.errors import ConfigError
 from jarvis_pytest.paths import REPO_ROOT
+from jarvis_pytest.results.run_state import read_run_meta
 
 CARD_FORMAT = 1
 PACKAGES = ("pytest", "pytest-xdist", "docker", "pydantic", "httpx", "pillow")
@@ -204,6 +206,21 @@ def with_results(card: dict[str, Any], results: Iterable[Any]) -> dict[str, Any]
 
 
 # -- reading cards -------------------------------------------------------------------------------------------------
+def read_card(run_dir: Path, field: str | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(run.json, its card) of `run_dir`; a ConfigError naming the file (and the option `field` that named the
+    run) when there is none."""
+    meta, bad = read_run_meta(run_dir)
+    if bad or meta is None:
+        raise ConfigError(f"run.json {bad or 'is missing'}", path=Path(run_dir) / "run.json", field=field,
+                          fix="give the folder of a run (reports/<run id>)")
+    card = meta.get("card")
+    if not isinstance(card, dict):
+        raise ConfigError("run.json has no run card: the run was made before run cards were written",
+                          path=Path(run_dir) / "run.json", field=field,
+                          fix="run its command (run.json's sessions[].argv) again")
+    return meta, card
+
+
 def flatten(data: Any, prefix: str = "") -> dict[str, str]:
     """Dotted key → the value's JSON text, for every leaf of `data` (a list is one leaf)."""
     if isinstance(data, dict) and data:
