@@ -17,6 +17,7 @@ COMMAND_MODULES = [
     "jarvis_pytest.agents.commands",
     "jarvis_pytest.player.commands",
     "jarvis_pytest.report.reproduce",
+    "jarvis_pytest.cluster.commands",
 ]
 
 

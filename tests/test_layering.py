@@ -15,7 +15,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "jarvis_pytest"
 # longest prefix that matches a module decides its layer. The command line (`cli`, the modules it registers
 # subcommands from, `__main__`s) is the top: it wires everything together.
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
-    ("foundations", ("errors", "naming", "paths", "http_client", "http_server")),
+    ("foundations", ("errors", "naming", "paths", "project_settings", "http_client", "http_server")),
     ("results", ("results",)),                  # result files and run state: data, no devices
     ("llm", ("llm",)),                          # the OpenAI-compatible client
     ("infra", ("infra",)),                      # Docker engines, containers, networks, images, the drive
@@ -26,6 +26,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("environments", ("environments",)),        # a task's devices, drive and network; the worker's pool
     ("agents", ("agents", "player")),           # the agent protocol, the built-in agents, the person's player
     ("harness", ("harness",)),                  # the task engine: one task end to end, without pytest
+    ("cluster", ("cluster",)),                  # task environments on Ray nodes (imports Ray only with --ray)
     ("report", ("report",)),                    # the rollup, the run card, reproduce and diff
     ("plugin", ("plugin",)),                    # the pytest glue
     ("apps", ("dashboard", "bench")),

@@ -358,6 +358,11 @@ class Backends(Mapping[str, Backend]):
         raise InfrastructureError(f"no device backend for platform {platform!r} (platforms with backends: "
                                   f"{sorted(known_platforms())})")
 
+    def given(self) -> dict[str, dict[str, str]]:
+        """The options given per platform (`--backend-option`, as text): with `decided`, what another process needs
+        to make the same backends (`resolve_backends({}, given, decided=...)`)."""
+        return {p: dict(v) for p, v in self._given.items()}
+
     def decided(self) -> dict[str, dict[str, str]]:
         """What was decided, as JSON (for xdist workers: `resolve_backends(decided=...)` makes the same)."""
         return {"chosen": {p: b.name for p, b in self._chosen.items()}, "missing": dict(self._missing)}

@@ -108,6 +108,7 @@ def _run_once(task: Task, ctx: RunContext, faults: list[str], trial: int = 1) ->
         result.device_provenance = dict(getattr(env, "provenance", {}))
         result.stand_ins = sorted(getattr(env, "stand_ins", ()))
         result.engine = getattr(env, "engine", "")
+        result.node = getattr(env, "node_label", "")
         result.worker = getattr(env, "worker", "")
         booted_ahead = wall_start - getattr(env, "boot_started", wall_start)  # > 0: pre-warmed
         t_boot = time.monotonic()

@@ -51,24 +51,35 @@ def _cleanup(args) -> int:
     from jarvis_pytest.results import run_lock
     from jarvis_pytest.results.run_state import read_json, resource_id
 
+    from jarvis_pytest.cluster.connect import configured as cluster_address
+
     hosts = list(engines.configured(args.docker_host, REPO_ROOT))
+    ray = cluster_address(args.ray, REPO_ROOT)
     run = args.run
     if run:  # a run folder (its name under reports/, or a path) stands for its resources, on the engines it used
         folder = next((f for f in (Path(run), REPO_ROOT / "reports" / run) if (f / "run.json").is_file()), None)
         if folder is not None:
             run = resource_id(folder)
-            recorded = (read_json(folder / "run.json") or {}).get("engines") or []
+            meta = read_json(folder / "run.json") or {}
+            recorded = meta.get("engines") or []
             hosts += [h for h in engines.check_urls(recorded, f"{folder / 'run.json'}: engines") if h not in hosts]
+            ray = ray or (meta.get("ray") or {}).get("address")  # and on the Ray nodes it ran on
     if args.list:
         _print_kept(hosts, removed=False)
         return 0
     kept_before = set(run_lock.kept_runs())
     counts = engines.cleanup_everywhere(tuple(hosts), run_id=run, everything=args.all, kept=args.kept)
+    if ray:  # every live node of the cluster, each on its own engine
+        from jarvis_pytest.cluster.cleanup import cleanup_nodes
+
+        for kind, n in cleanup_nodes(ray, "--ray", run_id=run, everything=args.all, kept=args.kept).items():
+            counts[kind] = counts.get(kind, 0) + n
     for gone in (kept_before if args.kept or args.all else [run] if run else []):
         run_lock.forget(gone)  # removed on every engine: no longer kept (a live run's record stays)
     what = (f"run {args.run}" if args.run else "every run" if args.all else
             "devices kept with --keep-devices by ended runs" if args.kept else "orphans: runs whose processes are gone")
     where = f" on {len(hosts)} engines" if len(hosts) > 1 else ""
+    where += f" and the live nodes of the Ray cluster at {ray}" if ray else ""
     print(", ".join(f"{v} {k}" for k, v in counts.items()) + f" removed ({what}){where}")
     if not (args.run or args.all or args.kept):
         run_lock.prune()  # the lock files killed runs left
@@ -125,6 +136,9 @@ def register(sub) -> None:
     c.add_argument("--docker-host", action="append", default=None, metavar="URL",
                    help="an engine to clean (repeatable; default: [tool.jarvis] docker_hosts, else the local one; "
                    "with --run also the engines the run recorded)")
+    c.add_argument("--ray", default=None, metavar="ADDRESS", help="also every live node of this Ray cluster, each "
+                   "on its own engine (default: [tool.jarvis] ray; with --run also the cluster the run recorded); a "
+                   "node that was down is cleaned by running this again once it is back")
     c.set_defaults(func=_cleanup)
 
     p = sub.add_parser("bench", help="measure the harness")

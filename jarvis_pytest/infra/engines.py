@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import socket
 import sys
-import tomllib
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
@@ -41,15 +40,11 @@ def check_urls(values: Iterable[str], field: str) -> tuple[str, ...]:
 
 def configured(cli: Sequence[str] | None, rootdir: Path) -> tuple[str, ...]:
     """The engines asked for: the command line's, else `[tool.jarvis] docker_hosts` of rootdir/pyproject.toml."""
+    from jarvis_pytest.project_settings import tool_table
+
     if cli:
         return check_urls(cli, "--docker-host")
-    pyproject = rootdir / "pyproject.toml"
-    if not pyproject.is_file():
-        return ()
-    try:
-        table = tomllib.loads(pyproject.read_text(encoding="utf-8")).get("tool", {}).get("jarvis", {})
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"not valid TOML ({exc})", path=pyproject, fix="correct the file") from None
+    pyproject, table = tool_table(rootdir)
     hosts = table.get("docker_hosts", [])
     if isinstance(hosts, str) or not isinstance(hosts, list):
         raise ConfigError(f"{hosts!r} is not a list", path=pyproject, field="tool.jarvis.docker_hosts",

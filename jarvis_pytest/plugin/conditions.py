@@ -31,6 +31,8 @@ def start_card(options: JarvisOptions, config: pytest.Config, agent_config: dict
         environment={"egress": o.allow_egress, "device_memory": o.device_memory, "device_cpus": o.device_cpus,
                      "backend_options": o.backend_options, "docker_hosts": list(o.docker_hosts)},
         argv=argv, keyword=config.getoption("keyword", "") or "", markers=config.getoption("markexpr", "") or "")
+    if o.ray:  # where the devices ran: informational (a node runs the same images, checked by their ids)
+        card["machine"]["ray"] = o.ray
     return card if o.reproduce is None else _reproducing(o, card)
 
 

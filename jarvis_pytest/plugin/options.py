@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from jarvis_pytest.devices.backend import ALIASES, BUILTIN, backend_option_pairs, check_backend_options
+from jarvis_pytest.cluster.connect import configured as cluster_address
 from jarvis_pytest.errors import ConfigError
 from jarvis_pytest.infra import engines
 from jarvis_pytest.infra.containers import PIDS_LIMIT, pids_limit
@@ -83,6 +84,9 @@ def addoption(parser: pytest.Parser) -> None:
                 help="a Docker engine to run devices on (repeatable: xdist workers are spread over the engines, each "
                 "task's devices on one); unix://, tcp://127.0.0.1:PORT or ssh:// URLs of engines on this machine; "
                 "default: [tool.jarvis] docker_hosts in pyproject.toml, else the local engine")
+    g.addoption("--ray", default=None, metavar="ADDRESS", help="run each task's devices on a node of the Ray "
+                "cluster at ADDRESS (HOST:PORT of its head; nodes declare jarvis_device_slots, see the README); the "
+                "agent loop stays here; default: [tool.jarvis] ray in pyproject.toml, else no Ray")
     g.addoption("--qc", action="store_true", help="quality gate of the tasks: evaluate right after set-up (every "
                 "evaluator must fail), run the oracle, evaluate again (every subtask must pass); implies --agent oracle")
 
@@ -109,6 +113,7 @@ class JarvisOptions:
     backends: dict[str, str] = field(default_factory=dict)  # platform → backend name asked for (absent: auto)
     backend_options: dict[str, dict[str, str]] = field(default_factory=dict)  # platform → key → text (as given)
     docker_hosts: tuple[str, ...] = ()  # the run's Docker engines (`infra/engines.py`); empty: the local one
+    ray: str | None = None  # the Ray cluster whose nodes run the devices (`cluster/`); None: this machine's engines
     trials: int = 1  # each selected task runs this many times, on fresh devices each time
     reproduce: Path | None = None  # an earlier run whose planned tasks (and trials) are run again, and only those,
     #                               under the conditions of its run card
@@ -214,6 +219,12 @@ def read_options(config: pytest.Config) -> JarvisOptions:
                           fix="drop --results-dir: a resumed run writes into the run it resumes")
     backends, backend_options = _backends(config), _backend_options(config)
     check_backend_options(backends, backend_options)  # names, keys and values; whether they run here: at start
+    hosts = engines.configured(config.getoption("--docker-host"), config.rootpath)
+    ray = cluster_address(config.getoption("--ray"), config.rootpath)
+    if ray and hosts:
+        raise ConfigError("--ray and --docker-host both say where devices run", field="--docker-host",
+                          fix="drop --docker-host (and [tool.jarvis] docker_hosts): with --ray each Ray node runs "
+                              "devices on its own engine")
     return JarvisOptions(
         agent=agent, agent_options=pairs, limits=limits, results_dir=results_dir, resume=resume,
         device_memory=str(memory).strip() if memory is not None else None, device_cpus=cpus,
@@ -224,8 +235,7 @@ def read_options(config: pytest.Config) -> JarvisOptions:
         endpoints={"planner": _endpoint(config, "planner"), "grounder": _endpoint(config, "grounder")},
         allow_egress=config.getoption("--allow-egress"),
         backends=backends, backend_options=backend_options,
-        docker_hosts=engines.configured(config.getoption("--docker-host"), config.rootpath),
-        trials=trials, reproduce=reproduce, allow_differences=config.getoption("--allow-differences"),
+        docker_hosts=hosts, ray=ray, trials=trials, reproduce=reproduce, allow_differences=config.getoption("--allow-differences"),
     )
 
 

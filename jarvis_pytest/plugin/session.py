@@ -102,6 +102,7 @@ class JarvisSession:
         self.worker = worker or "main"
         self.agent: Any = None
         self.context: RunContext | None = None
+        self.platforms: set[str] | None = None  # the platforms of the tasks this process may run (None: not known)
         self.state: run_state.RunState | None = None
         self.new_run = options.resume is None
         self.interrupted = False
@@ -193,9 +194,11 @@ class JarvisSession:
         if self.options.resume is not None:
             self._check_resume(key, agent.config(), found)
         _check_engines(self.options.docker_hosts)
-        _remove_orphans(self.options.docker_hosts)
+        nodes = _check_cluster(self.options.ray)
+        _remove_orphans(self.options.docker_hosts, self.options.ray)
         if self.lock is not None and not self.lock.was_kept:  # this folder's earlier, dead sessions' leftovers
-            _remove_run_resources(run_state.resource_id(self.run_dir), self.options.docker_hosts)  # (none of ours yet)
+            _remove_run_resources(run_state.resource_id(self.run_dir), self.options.docker_hosts,  # (none of ours yet)
+                                  self.options.ray)
         argv = redacted_argv(sys.argv[1:])
         card = conditions.start_card(self.options, self.config, agent.config(), self.backends, argv)
         self.state = run_state.RunState(self.run_dir, argv, resumed=not self.new_run)
@@ -206,6 +209,8 @@ class JarvisSession:
                          engines=list(dict.fromkeys([*(self.state.meta.get("engines") or []),
                                                      *self.options.docker_hosts])),  # every session's, for cleanup
                          card=card)
+        if nodes is not None:  # the cluster as it was at the start (each result names the node it ran on)
+            self.state.update(ray={"address": self.options.ray, "nodes": nodes})
 
     def pytest_report_header(self, config: pytest.Config) -> list[str] | None:
         """At the start of a run: the settings that change scores, and a warning for each unusual one."""
@@ -321,6 +326,8 @@ class JarvisSession:
             self.state.update(card={**self.state.meta["card"], "tasks": {
                 **self.state.meta["card"]["tasks"], "planned": len(plan["tasks"]),
                 "plan_digest": plan_digest(plan["tasks"], plan["digests"])}})
+        if self.options.ray:  # the images its nodes need
+            self.platforms = {p for t in tasks if skip_reason(t, self.backends) is None for p in task_platforms(t)}
         if tasks and self.options.docker_hosts:  # the images this process's tasks need, on its engine
             _copy_images_to_engine(self.options, self.backends, self.worker, tasks)
         if tasks and not self.is_controller:
@@ -346,16 +353,23 @@ class JarvisSession:
     # -- running --------------------------------------------------------------------------------------------
     def ensure_context(self) -> RunContext:
         if self.context is None:
-            from jarvis_pytest.harness.environments import make_environments
-
             o = self.options
+            settings = dict(keep_devices=o.keep_devices, device_memory=o.device_memory, device_cpus=o.device_cpus,
+                            transfer=o.transfer, egress=o.allow_egress, prewarm=o.prewarm,
+                            prewarm_reserve_mb=o.prewarm_reserve_mb)
+            run_id = run_state.resource_id(self.run_dir)
+            if o.ray:  # each task's devices on a Ray node (`cluster/`); the agent loop stays here
+                from jarvis_pytest.cluster.environments import make_cluster_environments
+
+                environments = make_cluster_environments(o.ray, self.backends, run_id=run_id, worker=self.worker,
+                                                         platforms=self.platforms, **settings)
+            else:
+                from jarvis_pytest.harness.environments import make_environments
+
+                environments = make_environments(self.backends, run_id=run_id, worker=self.worker,
+                                                 docker_hosts=o.docker_hosts, **settings)
             self.context = RunContext(
-                run_dir=self.run_dir, agent=self.ensure_agent(),
-                environments=make_environments(
-                    self.backends, run_id=run_state.resource_id(self.run_dir), worker=self.worker,
-                    keep_devices=o.keep_devices, device_memory=o.device_memory, device_cpus=o.device_cpus,
-                    transfer=o.transfer, egress=o.allow_egress, docker_hosts=o.docker_hosts, prewarm=o.prewarm,
-                    prewarm_reserve_mb=o.prewarm_reserve_mb),
+                run_dir=self.run_dir, agent=self.ensure_agent(), environments=environments,
                 limits=self.options.limits, keep_devices=self.options.keep_devices, on_keep=_print_kept,
                 qc=self.options.qc, egress=self.options.allow_egress,
             )
@@ -467,7 +481,7 @@ class JarvisSession:
         # devices this session or an earlier one of the folder kept (--keep-devices) wait for `jarvis cleanup`
         keep = self.options.keep_devices or (self.lock is not None and self.lock.keep_devices)
         if self.is_controller and (self.state is not None or self.interrupted) and not keep:
-            _remove_run_resources(run_id, self.options.docker_hosts)
+            _remove_run_resources(run_id, self.options.docker_hosts, self.options.ray)
         self.release_results_folder()
 
     def _finished_card(self, results: list[TaskResult]) -> dict[str, Any]:
@@ -590,15 +604,39 @@ def _copy_images_to_engine(options: JarvisOptions, backends: "Backends", worker:
         raise pytest.UsageError(f"--docker-host: {exc}") from None
 
 
-def _remove_orphans(hosts: tuple[str, ...] = ()) -> None:
-    """What runs whose process is gone left on the run's engines (containers, networks); live runs are safe."""
+def _check_cluster(address: str | None) -> list[dict[str, Any]] | None:
+    """With --ray: the cluster answers and has nodes that offer devices (one start-up error if not); its nodes."""
+    if not address:
+        return None
+    from jarvis_pytest.cluster.connect import connect, require_nodes
+
+    try:
+        nodes = require_nodes(connect(address), address)
+    except JarvisError as exc:
+        raise pytest.UsageError(str(exc)) from None
+    return [{"node": n.node_id, "address": n.address, "slots": n.slots, "kvm": n.kvm} for n in nodes]
+
+
+def _cleanup(hosts: tuple[str, ...], ray: str | None, **selection: Any) -> dict[str, int]:
+    """`cleanup` on the run's engines here, and with --ray on every live node of the cluster."""
     from jarvis_pytest.infra.engines import cleanup_everywhere
 
+    counts = cleanup_everywhere(hosts, **selection)
+    if ray:
+        from jarvis_pytest.cluster.cleanup import cleanup_nodes
+
+        for kind, n in cleanup_nodes(ray, **selection).items():
+            counts[kind] = counts.get(kind, 0) + n
+    return counts
+
+
+def _remove_orphans(hosts: tuple[str, ...] = (), ray: str | None = None) -> None:
+    """What runs whose process is gone left on the run's engines (containers, networks); live runs are safe."""
     from jarvis_pytest.results.run_lock import prune
 
     prune()
     try:
-        counts = cleanup_everywhere(hosts, orphans_only=True)
+        counts = _cleanup(hosts, ray, orphans_only=True)
     except Exception as exc:  # never a reason not to run; say it
         print(f"[jarvis] could not remove what earlier runs left: {exc}", file=sys.stderr, flush=True)
         return
@@ -607,13 +645,11 @@ def _remove_orphans(hosts: tuple[str, ...] = ()) -> None:
               file=sys.stderr, flush=True)
 
 
-def _remove_run_resources(run_id: str, hosts: tuple[str, ...] = ()) -> None:
-    from jarvis_pytest.infra.engines import cleanup_everywhere
-
+def _remove_run_resources(run_id: str, hosts: tuple[str, ...] = (), ray: str | None = None) -> None:
     try:
-        counts = cleanup_everywhere(hosts, run_id=run_id)
+        counts = _cleanup(hosts, ray, run_id=run_id)
     except Exception as exc:
-        hint = "".join(f" --docker-host {h}" for h in hosts)
+        hint = "".join(f" --docker-host {h}" for h in hosts) + (f" --ray {ray}" if ray else "")
         print(f"[jarvis] {exc}; run `jarvis cleanup --run {run_id}{hint}`", file=sys.stderr, flush=True)
         return
     if any(counts.values()):

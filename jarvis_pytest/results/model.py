@@ -160,7 +160,9 @@ class TaskResult(BaseModel):
     # (`Backend.provenance`): for a Windows VM the dockur image (its registry digest) that installed the golden,
     # the Windows it reported, and the memory snapshot the task's VM was restored from
     device_provenance: dict[str, dict[str, Any]] = Field(default_factory=dict)
-    engine: str = ""  # the Docker engine the task's devices ran on: "local" or the --docker-host URL
+    engine: str = ""  # the Docker engine the task's devices ran on: "local" or the --docker-host URL (with --ray:
+                      # the node's engine, as `ray start` was given it)
+    node: str = ""    # with --ray: the Ray node the devices ran on ("<host> <node id>"); "" without Ray
     worker: str = ""  # the xdist worker that ran it ("gw0", …; "main" without xdist)
     edges: list[tuple[int, int]] = Field(default_factory=list)  # (upstream, downstream) subtask indices
     failure_mode: str | None = None  # why a failed task failed (results/failure_modes.py)
