@@ -175,13 +175,23 @@ def task_library(folder: Path) -> Path:
     return folder
 
 
-def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path) -> dict[str, Any]:
-    """One benchmark run with `workers` xdist workers; the figures of the run."""
+def _children_cpu_seconds() -> float:
+    """CPU time (user + system) of this process's waited-for children so far: a benchmark run's pytest processes
+    (the controller and its xdist workers), never the devices (containers) nor a Ray node's processes."""
+    import resource
+
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path, ray: str | None = None) -> dict[str, Any]:
+    """One benchmark run with `workers` xdist workers (with `ray`, its devices on that Ray cluster's nodes); the
+    figures of the run."""
     from jarvis_pytest.infra.engine import client
     from jarvis_pytest.report.rollup import load_results
 
     latency = latency_ms / 1000
-    run_dir = out_root / f"throughput-w{workers}-{uuid.uuid4().hex[:6]}"
+    run_dir = out_root / f"throughput-w{workers}{'-ray' if ray else ''}-{uuid.uuid4().hex[:6]}"
     fake = FakeChatServer(models=("planner", "grounder"), record=False)  # holding every request slowed long runs
     fake.respond_with(lambda req: planner_reply(req, latency), model="planner")
     fake.respond_with(lambda req: Reply(text='{"x": 500, "y": 500}', delay=latency), model="grounder")
@@ -205,12 +215,13 @@ def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path) -> dict[
                "-n", str(workers), "--agent", "holo2", "--planner-base-url", fake.url, "--planner-model", "planner",
                "--grounder-base-url", fake.url, "--grounder-model", "grounder", "-k", TASK,
                "--instances", str(tasks), "--results-dir", str(run_dir), "--step-timeout", str(60 + 4 * latency),
-               "--library", str(task_library(Path(scratch)))]
+               "--library", str(task_library(Path(scratch))), *(["--ray", ray] if ray else [])]
         sampler = threading.Thread(target=sample, daemon=True)
         sampler.start()
-        t0, cpu0, dev0 = time.monotonic(), _busy_cpu_seconds(), _containers_cpu_seconds()
+        t0, cpu0, dev0, head0 = time.monotonic(), _busy_cpu_seconds(), _containers_cpu_seconds(), _children_cpu_seconds()
         proc = subprocess.run(cmd, cwd=REPO_ROOT, capture_output=True, text=True)
         wall, cpu, dev1 = time.monotonic() - t0, _busy_cpu_seconds() - cpu0, _containers_cpu_seconds()
+        head = _children_cpu_seconds() - head0
         stop.set()
     results = load_results(run_dir)[0]
     passed = sum(r.status == "passed" for r in results)
@@ -222,7 +233,8 @@ def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path) -> dict[
             s = json.loads(line)
             model = float((s.get("extra") or {}).get("model_ms", 0.0))
             overhead.append(s["observe_ms"] + s["exec_ms"] + max(0.0, s["agent_ms"] - model))
-    return {"workers": workers, "tasks": len(results), "passed": passed, "wall_s": round(wall, 1),
+    return {"workers": workers, "where": "ray" if ray else "local", "tasks": len(results), "passed": passed,
+            "wall_s": round(wall, 1),
             "tasks_per_hour": round(len(results) / wall * 3600, 1) if wall else 0.0,
             "cold_start_share": round(boot / (wall * workers), 3) if wall else 0.0,
             "overhead_ms": {"p50": round(percentile(overhead, 0.5), 1) if overhead else None,
@@ -233,7 +245,10 @@ def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path) -> dict[
             # tasks/hour at which this machine's cores would be saturated
             "cpu_s_per_task": round(cpu / len(results), 2) if results else None,
             "device_cpu_s_per_task": round((dev1 - dev0) / len(results), 2) if results and dev0 is not None
-            and dev1 is not None else None,  # of which the devices and drives (their containers)
+            and dev1 is not None else None,  # of which the devices and drives (their containers on this engine)
+            # the head's own share: the pytest processes (controller, workers: the agent loop, the results, with
+            # --ray the Ray driver's side of every device call), from their rusage
+            "head_cpu_s_per_task": round(head / len(results), 3) if results else None,
             "cpu_bound_tasks_per_hour": round((os.cpu_count() or 1) * 3600 / (cpu / len(results))) if results and cpu
             else None,
             "exit": proc.returncode, "results": str(run_dir),
@@ -254,21 +269,33 @@ def tasks_for(workers: int, tasks: int | None) -> int:
     return tasks if tasks else PER_WORKER * workers
 
 
-def measure(worker_counts: list[int], latency_ms: int, tasks: int | None, out_root: Path) -> dict[str, Any]:
+def measure(worker_counts: list[int], latency_ms: int, tasks: int | None, out_root: Path,
+            ray: str | None = None) -> dict[str, Any]:
+    """One run per worker count; with `ray`, two per worker count, side by side: devices on this machine's engine,
+    then on the Ray cluster's nodes (`ray_overhead_ms`: the Ray run's per-step overhead above the local one's)."""
     before = speed_reference()
-    runs = [run_once(w, latency_ms, tasks_for(w, tasks), out_root) for w in worker_counts]
+    runs = []
+    for w in worker_counts:
+        runs.append(run_once(w, latency_ms, tasks_for(w, tasks), out_root))
+        if ray:
+            runs.append(run_once(w, latency_ms, tasks_for(w, tasks), out_root, ray=ray))
+            local, remote = runs[-2]["overhead_ms"], runs[-1]["overhead_ms"]
+            runs[-1]["ray_overhead_ms"] = {q: round(remote[q] - local[q], 1) if remote[q] is not None and
+                                           local[q] is not None else None for q in ("p50", "p90")}
     after = speed_reference()
     speed = {name: [before[name], after[name]] for name in before}
-    base = runs[0]["tasks_per_hour"] if runs else 0.0
-    steady_base = runs[0]["steady"]["tasks_per_hour"] if runs else None
-    for r in runs:
-        r["speedup"] = round(r["tasks_per_hour"] / base, 2) if base else None
-        rate = r["steady"]["tasks_per_hour"]
-        r["steady"]["speedup"] = round(rate / steady_base, 2) if rate and steady_base else None
+    for where in ("local", "ray"):  # speed-ups against the first run of the same kind
+        same = [r for r in runs if r["where"] == where]
+        base = same[0]["tasks_per_hour"] if same else 0.0
+        steady_base = same[0]["steady"]["tasks_per_hour"] if same else None
+        for r in same:
+            r["speedup"] = round(r["tasks_per_hour"] / base, 2) if base else None
+            rate = r["steady"]["tasks_per_hour"]
+            r["steady"]["speedup"] = round(rate / steady_base, 2) if rate and steady_base else None
     # `tasks`: as asked (None: the default per worker count; each run says its own in runs[].tasks)
     # `speed_reference`: each reference's CPU seconds before the first run and after the last
     return {"task": TASK, "latency_ms": latency_ms, "tasks": tasks, "cores": os.cpu_count(),
-            "speed_reference": speed, "runs": runs}
+            "speed_reference": speed, "runs": runs, "ray": ray}
 
 
 def render(result: dict[str, Any]) -> str:
@@ -280,17 +307,26 @@ def render(result: dict[str, Any]) -> str:
              + ", ".join(f"{name} {a} / {b}" for name, (a, b) in result["speed_reference"].items()),
              f"{'workers':>7} {'tasks/h':>9} {'speed-up':>9} {'cold-start':>11} {'steady/h':>9} {'speed-up':>9} "
              f"{'cold-start':>11} {'overhead p50':>13} {'p90':>7} {'peak MB':>8} {'CPU s/task':>11} {'devices':>8} "
-             f"{'CPU-bound at':>13} {'passed':>7}"]
+             f"{'head':>6} {'CPU-bound at':>13} {'passed':>7}"]
     for r in result["runs"]:
         o, st = r["overhead_ms"], r["steady"]
         steady = (f"{st['tasks_per_hour']:>9.1f} {st.get('speedup') or 0:>8.2f}× {100 * st['cold_start_share']:>10.1f}%"
                   if st["tasks_per_hour"] else f"{'-':>9} {'-':>9} {'-':>11}")
-        lines.append(f"{r['workers']:>7} {r['tasks_per_hour']:>9.1f} {r['speedup'] or 0:>8.2f}× "
+        lines.append(f"{r['workers']:>7}{'+ray' if r.get('where') == 'ray' else '    '} {r['tasks_per_hour']:>9.1f} {r['speedup'] or 0:>8.2f}× "
                      f"{100 * r['cold_start_share']:>10.1f}% {steady} "
                      f"{o['p50'] or 0:>11.1f} ms {o['p90'] or 0:>4.0f} ms "
                      f"{r['peak_memory_mb']:>8} {r['cpu_s_per_task'] or 0:>11.1f} "
                      f"{r['device_cpu_s_per_task'] if r['device_cpu_s_per_task'] is not None else '-':>8} "
+                     f"{r.get('head_cpu_s_per_task') or 0:>6.2f} "
                      f"{r['cpu_bound_tasks_per_hour'] or 0:>9} /h {r['passed']:>3}/{r['tasks']}")
+    for r in result["runs"]:
+        if r.get("ray_overhead_ms"):
+            extra = r["ray_overhead_ms"]
+            lines.append(f"through Ray ({result.get('ray')}), {r['workers']} worker(s): per-step overhead "
+                         f"{extra['p50']:+.1f} ms at p50, {extra['p90']:+.1f} ms at p90 above the local run; the "
+                         f"head spent {r.get('head_cpu_s_per_task') or 0:.2f} CPU-s a task")
+    lines.append("head: CPU-s a task of the pytest processes alone (controller and workers; devices and Ray nodes "
+                 "apart); with +ray the devices ran on the nodes (CPU s/task counts this whole machine)")
     return "\n".join(lines)
 
 
@@ -299,6 +335,11 @@ def main(args) -> int:
     if not workers or min(workers) < 1:
         print("jarvis bench throughput: --workers takes counts of 1 or more, e.g. 1,2,4,8", file=sys.stderr)
         return 2
-    result = measure(workers, args.latency_ms, args.tasks, Path(args.results or REPO_ROOT / "reports"))
+    ray = None
+    if getattr(args, "ray", None):
+        from jarvis_pytest.cluster.connect import check_address
+
+        ray = check_address(args.ray)
+    result = measure(workers, args.latency_ms, args.tasks, Path(args.results or REPO_ROOT / "reports"), ray=ray)
     print(json.dumps(result, indent=2) if args.json else render(result))
     return 0 if all(r["exit"] == 0 for r in result["runs"]) else 1

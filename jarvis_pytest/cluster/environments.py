@@ -61,7 +61,7 @@ class ClusterEnvironments:
         self.links: dict[str, NodeLink] = {}      # node id → this worker's agent there
         self._lock = threading.Lock()
         self._prewarmed: dict[tuple[str, ...], Future] = {}  # platforms → (placement group, link) being booted
-        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ray-prewarm")
+        self._executor = ThreadPoolExecutor(max_workers=4, thread_name_prefix="ray-prewarm")
         self._closed = False
         self.lost_nodes: dict[str, float] = {}    # node → when this worker found it lost (Ray may still place there)
 
@@ -222,6 +222,9 @@ class ClusterEnvironments:
         key = tuple(sorted(set(platforms)))
         with self._lock:
             future = self._prewarmed.pop(key, None)
+            others = [(k, self._prewarmed.pop(k)) for k in list(self._prewarmed)]
+        for other, held in others:  # a wrong guess gives its room back: on a full cluster it could hold the room
+            self._executor.submit(self._discard, other, held)  # this task waits for (locally it waits for its key)
         if future is not None:
             try:
                 pg, node_id = future.result()
@@ -247,6 +250,17 @@ class ClusterEnvironments:
             self._free(pg)
             raise
         return pg, node_id
+
+    def _discard(self, key: tuple[str, ...], held: Future) -> None:
+        try:
+            pg, node_id = held.result()
+        except Exception:
+            return  # its placement or boot failed: it holds nothing
+        try:
+            self.link(node_id).raw("discard", list(key))
+        except Exception:
+            pass  # a lost node's pre-warm went with it
+        self._free(pg)
 
     def close(self) -> None:
         """Give back the pre-warmed rooms and close every agent of this worker (their pre-warmed environments and

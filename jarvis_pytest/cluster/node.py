@@ -123,6 +123,11 @@ class NodeAgent:
         except Exception:
             pass  # the task that needs it meets the same error, where it is reported
 
+    def discard(self, platforms: list[str]) -> None:
+        """Remove the pre-warmed environment of `platforms` (its room is given back on the head)."""
+        if self._pool is not None:
+            self._pool.discard(tuple(platforms))
+
     def _part(self, env_id: str, role: str) -> Any:
         env = self.envs.get(env_id)
         if env is None:

@@ -127,6 +127,18 @@ class Pool:
         priority.settle()
         return environment
 
+    def discard(self, platforms: tuple[str, ...] | list[str]) -> None:
+        """Remove the pre-warmed environment of `platforms` (once booted), if there is one: its room is wanted."""
+        with self._lock:
+            future, _, wanted = self._ready.pop(_key(platforms), (None, None, None))
+        if future is None:
+            return
+        wanted.set()  # one still waiting for memory boots and goes at once (the pool is single-threaded)
+        try:
+            future.result().close()
+        except Exception:
+            pass  # a failed boot removed what it made
+
     def close(self) -> None:
         """Remove the environments not handed out (waiting for a boot in progress); idempotent."""
         with self._lock:

@@ -156,6 +156,8 @@ def register(sub) -> None:
     t.add_argument("--tasks", type=int, default=None, help="tasks per run (default: 16 per worker in every run, so "
                    "that every worker does the same work and its steady state can be read)")
     t.add_argument("--results", default=None, help="where the runs' results go (default reports/)")
+    t.add_argument("--ray", default=None, metavar="ADDRESS", help="also run each worker count with --ray ADDRESS, "
+                   "side by side with the local run: the per-step overhead Ray adds and the head's CPU-s per task")
     t.add_argument("--json", action="store_true", help="print JSON")
     t.set_defaults(func=_bench_throughput)
 
