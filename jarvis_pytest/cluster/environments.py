@@ -64,6 +64,7 @@ class ClusterEnvironments:
         self._executor = ThreadPoolExecutor(max_workers=4, thread_name_prefix="ray-prewarm")
         self._closed = False
         self.lost_nodes: dict[str, float] = {}    # node → when this worker found it lost (Ray may still place there)
+        self._making: dict[str, threading.Lock] = {}  # node → held while this worker's agent there is made
 
     # -- room on a node -------------------------------------------------------------------------------------
     def room(self, platforms: tuple[str, ...]) -> dict[str, float]:
@@ -123,7 +124,14 @@ class ClusterEnvironments:
 
     # -- the agents -----------------------------------------------------------------------------------------
     def link(self, node_id: str) -> NodeLink:
-        """This worker's agent on `node_id`, made (and the node's images seen to) on first use."""
+        """This worker's agent on `node_id`, made (and the node's images seen to) on first use (one maker at a time
+        per node: a pre-warm and a task may ask together)."""
+        with self._lock:
+            making = self._making.setdefault(node_id, threading.Lock())
+        with making:
+            return self._link(node_id)
+
+    def _link(self, node_id: str) -> NodeLink:
         with self._lock:
             link = self.links.get(node_id)
             if link is not None and link.lost is None:

@@ -70,7 +70,7 @@ def _node_ids() -> set[str]:
 
 
 def _processes() -> list[str]:
-    return subprocess.run(["ps", "-eo", "pid,args"], capture_output=True, text=True).stdout.splitlines()[1:]
+    return subprocess.run(["ps", "-ww", "-eo", "pid,args"], capture_output=True, text=True).stdout.splitlines()[1:]
 
 
 def share_of_memory(nodes: int) -> int:
@@ -136,7 +136,7 @@ def stop(cluster: LocalCluster, wait: float = 20.0) -> None:
         """The session's processes (and the head's Ray client server, which names the head's port), with every
         process they started (workers, agents: they rename themselves `ray::...`)."""
         table = [line.split(None, 2) for line in
-                 subprocess.run(["ps", "-eo", "pid,ppid,args"], capture_output=True, text=True).stdout.splitlines()[1:]]
+                 subprocess.run(["ps", "-ww", "-eo", "pid,ppid,args"], capture_output=True, text=True).stdout.splitlines()[1:]]
         found = {int(pid) for pid, _, args in table if cluster.session in args
                  or ("ray.util.client.server" in args and f":{port} " in args)}
         grew = True
