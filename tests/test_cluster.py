@@ -121,6 +121,24 @@ def test_what_crosses_to_the_head_keeps_its_type():
                                "observe": "method"}
 
 
+def test_the_room_a_task_asks_of_a_node():
+    """One device slot per device, the memory its devices and drive hold once booted, `kvm` for KVM guests."""
+    from types import SimpleNamespace
+
+    from jarvis_pytest.cluster.environments import ClusterEnvironments, needs_kvm
+    from jarvis_pytest.devices.backend import Backends, backends_of
+
+    assert needs_kvm(backends_of("android")["emulator"]) and needs_kvm(backends_of("windows")["kvm"])
+    assert not needs_kvm(backends_of("windows")["wine"]) and not needs_kvm(backends_of("ubuntu")["docker"])
+    chosen = {"ubuntu": backends_of("ubuntu")["docker"], "windows": backends_of("windows")["wine"],
+              "android": backends_of("android")["emulator"]}
+    pool = SimpleNamespace(backends=Backends(chosen), settings={"transfer": None})
+    room = ClusterEnvironments.room(pool, ("ubuntu", "windows"))
+    memory = chosen["ubuntu"].booted_memory_mb + chosen["windows"].booted_memory_mb
+    assert room["jarvis_device_slots"] == 2 and "kvm" not in room and room["memory"] > memory * 2**20
+    assert ClusterEnvironments.room(pool, ("android", "ubuntu"))["kvm"] == 1
+
+
 # -- on a real cluster ---------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def cluster(device_images):

@@ -62,6 +62,7 @@ class RunMemory:
         self.ours: dict[str, bool] = {}    # pid → a pytest process of the run
         self.seen: set[str] = set()        # container ids seen in the cgroup hierarchy
         self.containers: set[str] = set()  # of which the run's
+        self.head = 0.0                    # MB of the run's pytest processes alone, at the last sample
 
     def _our_process(self, pid: str) -> bool:
         cmd = Path(f"/proc/{pid}/cmdline").read_bytes()
@@ -82,6 +83,7 @@ class RunMemory:
                 total += int((CGROUP_MEMORY / cid / "memory.usage_in_bytes").read_text())
             except (OSError, ValueError):
                 pass
+        head = 0
         for pid in os.listdir("/proc"):
             if not pid.isdigit():
                 continue
@@ -89,12 +91,13 @@ class RunMemory:
                 if pid not in self.ours:
                     self.ours[pid] = self._our_process(pid)
                 if self.ours[pid]:
-                    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+                    for line in Path(f"/proc/{pid}/status").read_text(errors="replace").splitlines():
                         if line.startswith("VmRSS:"):
-                            total += int(line.split()[1]) * 1024
-            except OSError:
+                            head += int(line.split()[1]) * 1024
+            except (OSError, ValueError):
                 pass
-        return total / 2**20
+        self.head = head / 2**20
+        return (total + head) / 2**20
 
 
 def _busy_cpu_seconds() -> float:
@@ -196,15 +199,16 @@ def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path, ray: str
     fake.respond_with(lambda req: planner_reply(req, latency), model="planner")
     fake.respond_with(lambda req: Reply(text='{"x": 500, "y": 500}', delay=latency), model="grounder")
     docker = client()
-    peak = 0.0
+    peak = peak_head = 0.0
     stop = threading.Event()
 
     memory = RunMemory(resource_id(run_dir), docker)
 
     def sample() -> None:
-        nonlocal peak
+        nonlocal peak, peak_head
         while not stop.wait(1.0):
             peak = max(peak, memory.mb())
+            peak_head = max(peak_head, memory.head)
 
     with fake, tempfile.TemporaryDirectory(prefix="jarvis-throughput-") as scratch:
         # -p no:hypothesispytest: the project's own tests use Hypothesis, so the development venv has it, and its
@@ -239,7 +243,8 @@ def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path, ray: str
             "cold_start_share": round(boot / (wall * workers), 3) if wall else 0.0,
             "overhead_ms": {"p50": round(percentile(overhead, 0.5), 1) if overhead else None,
                             "p90": round(percentile(overhead, 0.9), 1) if overhead else None, "steps": len(overhead)},
-            "peak_memory_mb": round(peak),
+            "peak_memory_mb": round(peak),  # the run's containers on this machine's engine and its pytest processes
+            "peak_head_mb": round(peak_head),  # its pytest processes alone
             "steady": steady_state(results),
             # the machine's busy CPU time per task (devices, harness, the loopback model, start-up) and the
             # tasks/hour at which this machine's cores would be saturated
@@ -324,7 +329,8 @@ def render(result: dict[str, Any]) -> str:
             extra = r["ray_overhead_ms"]
             lines.append(f"through Ray ({result.get('ray')}), {r['workers']} worker(s): per-step overhead "
                          f"{extra['p50']:+.1f} ms at p50, {extra['p90']:+.1f} ms at p90 above the local run; the "
-                         f"head spent {r.get('head_cpu_s_per_task') or 0:.2f} CPU-s a task")
+                         f"head spent {r.get('head_cpu_s_per_task') or 0:.2f} CPU-s a task, its pytest processes "
+                         f"held {r.get('peak_head_mb') or 0} MB at most")
     lines.append("head: CPU-s a task of the pytest processes alone (controller and workers; devices and Ray nodes "
                  "apart); with +ray the devices ran on the nodes (CPU s/task counts this whole machine)")
     return "\n".join(lines)

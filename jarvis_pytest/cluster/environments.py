@@ -20,6 +20,7 @@ the nodes left (the lost node's agent is dropped; Ray re-places rooms it held).
 
 from __future__ import annotations
 
+import itertools
 import sys
 import threading
 import time
@@ -65,6 +66,7 @@ class ClusterEnvironments:
         self._closed = False
         self.lost_nodes: dict[str, float] = {}    # node → when this worker found it lost (Ray may still place there)
         self._making: dict[str, threading.Lock] = {}  # node → held while this worker's agent there is made
+        self._made = itertools.count(1)
 
     # -- room on a node -------------------------------------------------------------------------------------
     def room(self, platforms: tuple[str, ...]) -> dict[str, float]:
@@ -148,7 +150,7 @@ class ClusterEnvironments:
         where = f"{node.address} {node_id[:12]}" if node else node_id[:12]
         actor_class = self.ray.remote(NodeAgent)
         actor = actor_class.options(
-            name=agent_name(self.run_id, self.worker, node_id) + ("" if link is None else f"-{int(time.time())}"),
+            name=f"{agent_name(self.run_id, self.worker, node_id)}-{next(self._made)}",  # a lost agent's is not reused
             num_cpus=0, max_concurrency=32, max_restarts=0,
             scheduling_strategy=NodeAffinitySchedulingStrategy(node_id, soft=False),
         ).remote(self.backends.decided(), self.backends.given(), self.settings)
@@ -167,7 +169,13 @@ class ClusterEnvironments:
         link.host = f"{info['hostname']} ({node.address})" if node else info["hostname"]
         link.describe = f"{link.host} {node_id[:12]}"
         link.engine = info["engine"]
-        self._provide_images(link)
+        try:
+            self._provide_images(link)
+        except Exception as exc:
+            if lost_node(self.ray, exc) or link.lost is not None:
+                raise NodeUnavailable(f"the Ray node {link.describe} was lost while it got the run's images "
+                                      f"({exc.__class__.__name__})") from None
+            raise
         with self._lock:
             self.links[node_id] = link
         return link
