@@ -32,6 +32,8 @@ def test_throughput_bench_runs_real_tasks_and_reports_every_figure(device_images
         assert run["tasks_per_hour"] > 0 and 0 <= run["cold_start_share"] <= 1
         assert run["overhead_ms"]["steps"] >= 2 * 2 and run["overhead_ms"]["p50"] > 0  # a step: observe + act
         assert run["peak_memory_mb"] > 100 and run["cpu_s_per_task"] > 0 and run["cpu_bound_tasks_per_hour"] > 0
+        assert 50 * (run["workers"] + 1) < run["peak_head_mb"] < run["peak_memory_mb"]  # controller and workers
+        assert 0 < run["head_cpu_s_per_task"] < run["cpu_s_per_task"] and run["where"] == "local"
         if CONTAINERS_CPU.exists():  # cgroup v1 with Docker's cgroupfs driver, as here
             assert 0 < run["device_cpu_s_per_task"] < run["cpu_s_per_task"], run
         results = [json.loads(p.read_text()) for p in Path(run["results"]).glob("tasks/*/result.json")]

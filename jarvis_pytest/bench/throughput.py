@@ -51,22 +51,39 @@ def planner_reply(req: RecordedRequest, latency: float) -> Reply:
 
 
 class RunMemory:
-    """The memory of one run now: its containers (cgroup usage) and its pytest processes (RSS).
+    """The memory of one run now: its containers on this machine's engine (cgroup usage) and its pytest processes
+    (RSS: the process `root`, the run's controller, and every process under it: the xdist workers).
 
-    Sampled every second, it costs the machine it measures little: a process is told apart by its command line
-    once (the run's pytest processes live as long as the run; a pid reused within it would be missed), and Docker
-    is asked for the run's containers only when a new container shows in the cgroup hierarchy."""
+    Sampled every second, it costs the machine it measures little: Docker is asked for the run's containers only
+    when a new container shows in the cgroup hierarchy. (Until 2026-11-29 a process was told apart by its command
+    line, which matched neither the controller nor an xdist worker: the peak memory counted the containers only.)"""
 
     def __init__(self, run_id: str, docker: Any):
         self.run_id, self.docker = run_id, docker
-        self.ours: dict[str, bool] = {}    # pid → a pytest process of the run
+        self.root: int | None = None       # the run's controller, once started
         self.seen: set[str] = set()        # container ids seen in the cgroup hierarchy
         self.containers: set[str] = set()  # of which the run's
         self.head = 0.0                    # MB of the run's pytest processes alone, at the last sample
 
-    def _our_process(self, pid: str) -> bool:
-        cmd = Path(f"/proc/{pid}/cmdline").read_bytes()
-        return b"pytest" in cmd and self.run_id.encode() in cmd or b"xdist" in cmd and b"execnet" in cmd
+    def _processes(self) -> list[str]:
+        """The pids of `root` and every process under it."""
+        if self.root is None:
+            return []
+        children: dict[str, list[str]] = {}
+        for pid in os.listdir("/proc"):
+            if not pid.isdigit():
+                continue
+            try:
+                stat = Path(f"/proc/{pid}/stat").read_text(errors="replace")
+                children.setdefault(stat.rsplit(")", 1)[1].split()[1], []).append(pid)
+            except (OSError, IndexError):
+                pass
+        found, todo = [], [str(self.root)]
+        while todo:
+            pid = todo.pop()
+            found.append(pid)
+            todo += children.get(pid, [])
+        return found
 
     def mb(self) -> float:
         total = 0
@@ -84,16 +101,11 @@ class RunMemory:
             except (OSError, ValueError):
                 pass
         head = 0
-        for pid in os.listdir("/proc"):
-            if not pid.isdigit():
-                continue
+        for pid in self._processes():
             try:
-                if pid not in self.ours:
-                    self.ours[pid] = self._our_process(pid)
-                if self.ours[pid]:
-                    for line in Path(f"/proc/{pid}/status").read_text(errors="replace").splitlines():
-                        if line.startswith("VmRSS:"):
-                            head += int(line.split()[1]) * 1024
+                for line in Path(f"/proc/{pid}/status").read_text(errors="replace").splitlines():
+                    if line.startswith("VmRSS:"):
+                        head += int(line.split()[1]) * 1024
             except (OSError, ValueError):
                 pass
         self.head = head / 2**20
@@ -223,7 +235,10 @@ def run_once(workers: int, latency_ms: int, tasks: int, out_root: Path, ray: str
         sampler = threading.Thread(target=sample, daemon=True)
         sampler.start()
         t0, cpu0, dev0, head0 = time.monotonic(), _busy_cpu_seconds(), _containers_cpu_seconds(), _children_cpu_seconds()
-        proc = subprocess.run(cmd, cwd=REPO_ROOT, capture_output=True, text=True)
+        runner = subprocess.Popen(cmd, cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        memory.root = runner.pid
+        stdout, _ = runner.communicate()
+        proc = subprocess.CompletedProcess(cmd, runner.returncode, stdout, "")
         wall, cpu, dev1 = time.monotonic() - t0, _busy_cpu_seconds() - cpu0, _containers_cpu_seconds()
         head = _children_cpu_seconds() - head0
         stop.set()

@@ -67,6 +67,9 @@ class ClusterEnvironments:
         self.lost_nodes: dict[str, float] = {}    # node → when this worker found it lost (Ray may still place there)
         self._making: dict[str, threading.Lock] = {}  # node → held while this worker's agent there is made
         self._made = itertools.count(1)
+        from jarvis_pytest.cluster.node import harness_digest
+
+        self.harness = harness_digest()  # every node's agent must run the same
 
     # -- room on a node -------------------------------------------------------------------------------------
     def room(self, platforms: tuple[str, ...]) -> dict[str, float]:
@@ -169,6 +172,11 @@ class ClusterEnvironments:
         link.host = f"{info['hostname']} ({node.address})" if node else info["hostname"]
         link.describe = f"{link.host} {node_id[:12]}"
         link.engine = info["engine"]
+        if info["harness"] != self.harness:
+            self.ray.kill(actor)
+            raise InfrastructureError(f"the harness on Ray node {link.describe} is not this one (its files' digest "
+                                      f"{info['harness']}, here {self.harness}): install the same jarvis-pytest on "
+                                      "every node")
         try:
             self._provide_images(link)
         except Exception as exc:

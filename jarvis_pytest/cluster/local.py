@@ -128,7 +128,7 @@ def kill_node(node_id: str) -> None:
     raise InfrastructureError(f"no raylet of node {node_id[:12]} runs here")
 
 
-def stop(cluster: LocalCluster, wait: float = 20.0) -> None:
+def stop(cluster: LocalCluster, wait: float = 5.0) -> None:
     """Stop every process of the cluster's session (SIGTERM, then SIGKILL); other Ray clusters are left alone."""
     port = cluster.address.rsplit(":", 1)[1]
 

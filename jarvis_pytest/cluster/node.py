@@ -34,6 +34,17 @@ def engine_url() -> str:
     return os.environ.get("DOCKER_HOST") or "local"
 
 
+def harness_digest() -> str:
+    """A digest of the harness's own files as installed here (its .py, .json and .txt files): the head refuses a
+    node whose harness differs from its own (results would mix two harnesses)."""
+    package = Path(__file__).resolve().parents[1]
+    digest = hashlib.sha256()
+    for path in sorted(p for p in package.rglob("*") if p.suffix in (".py", ".json", ".txt")
+                       and "__pycache__" not in p.parts):
+        digest.update(path.relative_to(package).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.hexdigest()[:16]
+
+
 def shape(obj: Any) -> dict[str, str]:
     """Public name → "method" or "attribute" for an object the head proxies (read without running properties)."""
     out = {}
@@ -97,7 +108,8 @@ class NodeAgent:
         """Where this agent runs: the node's host name, engine, process and harness version."""
         from jarvis_pytest import __version__
 
-        return {"hostname": socket.gethostname(), "engine": engine_url(), "pid": os.getpid(), "version": __version__}
+        return {"hostname": socket.gethostname(), "engine": engine_url(), "pid": os.getpid(), "version": __version__,
+                "harness": harness_digest()}
 
     # -- environments ---------------------------------------------------------------------------------------
     def acquire(self, platforms: list[str]) -> tuple[str, Any]:
