@@ -40,3 +40,16 @@ def cleanup_nodes(address: str, field: str = "--ray", **selection: Any) -> dict[
     if problems:
         raise InfrastructureError("; ".join(problems))
     return total
+
+
+def cleanup_everywhere(hosts: tuple[str, ...] | list[str], ray: str | None, field: str = "--ray",
+                       **selection: Any) -> dict[str, int]:
+    """`infra/engines.cleanup_everywhere(hosts, ...)` (this machine's engines), and with `ray` also every live node
+    of that cluster: the counts summed."""
+    from jarvis_pytest.infra import engines
+
+    counts = engines.cleanup_everywhere(tuple(hosts), **selection)
+    if ray:
+        for kind, n in cleanup_nodes(ray, field, **selection).items():
+            counts[kind] = counts.get(kind, 0) + n
+    return counts

@@ -68,12 +68,10 @@ def _cleanup(args) -> int:
         _print_kept(hosts, removed=False)
         return 0
     kept_before = set(run_lock.kept_runs())
-    counts = engines.cleanup_everywhere(tuple(hosts), run_id=run, everything=args.all, kept=args.kept)
-    if ray:  # every live node of the cluster, each on its own engine
-        from jarvis_pytest.cluster.cleanup import cleanup_nodes
+    from jarvis_pytest.cluster.cleanup import cleanup_everywhere
 
-        for kind, n in cleanup_nodes(ray, "--ray", run_id=run, everything=args.all, kept=args.kept).items():
-            counts[kind] = counts.get(kind, 0) + n
+    # this machine's engines, and every live node of the cluster (each on its own engine)
+    counts = cleanup_everywhere(hosts, ray, run_id=run, everything=args.all, kept=args.kept)
     for gone in (kept_before if args.kept or args.all else [run] if run else []):
         run_lock.forget(gone)  # removed on every engine: no longer kept (a live run's record stays)
     what = (f"run {args.run}" if args.run else "every run" if args.all else

@@ -617,26 +617,14 @@ def _check_cluster(address: str | None) -> list[dict[str, Any]] | None:
     return [{"node": n.node_id, "address": n.address, "slots": n.slots, "kvm": n.kvm} for n in nodes]
 
 
-def _cleanup(hosts: tuple[str, ...], ray: str | None, **selection: Any) -> dict[str, int]:
-    """`cleanup` on the run's engines here, and with --ray on every live node of the cluster."""
-    from jarvis_pytest.infra.engines import cleanup_everywhere
-
-    counts = cleanup_everywhere(hosts, **selection)
-    if ray:
-        from jarvis_pytest.cluster.cleanup import cleanup_nodes
-
-        for kind, n in cleanup_nodes(ray, **selection).items():
-            counts[kind] = counts.get(kind, 0) + n
-    return counts
-
-
 def _remove_orphans(hosts: tuple[str, ...] = (), ray: str | None = None) -> None:
     """What runs whose process is gone left on the run's engines (containers, networks); live runs are safe."""
+    from jarvis_pytest.cluster.cleanup import cleanup_everywhere
     from jarvis_pytest.results.run_lock import prune
 
     prune()
     try:
-        counts = _cleanup(hosts, ray, orphans_only=True)
+        counts = cleanup_everywhere(hosts, ray, orphans_only=True)
     except Exception as exc:  # never a reason not to run; say it
         print(f"[jarvis] could not remove what earlier runs left: {exc}", file=sys.stderr, flush=True)
         return
@@ -646,8 +634,10 @@ def _remove_orphans(hosts: tuple[str, ...] = (), ray: str | None = None) -> None
 
 
 def _remove_run_resources(run_id: str, hosts: tuple[str, ...] = (), ray: str | None = None) -> None:
+    from jarvis_pytest.cluster.cleanup import cleanup_everywhere
+
     try:
-        counts = _cleanup(hosts, ray, run_id=run_id)
+        counts = cleanup_everywhere(hosts, ray, run_id=run_id)
     except Exception as exc:
         hint = "".join(f" --docker-host {h}" for h in hosts) + (f" --ray {ray}" if ray else "")
         print(f"[jarvis] {exc}; run `jarvis cleanup --run {run_id}{hint}`", file=sys.stderr, flush=True)
