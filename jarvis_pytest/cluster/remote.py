@@ -132,7 +132,8 @@ class RemoteEnvironment:
         text = self.link.raw("release", self.env_id, True)
         self._closed = True
         self._give_room()
-        return f"on Ray node {self.node_host} ({self.node[:12]}), engine {self.engine}:\n{text}"
+        return (f"on Ray node {self.node_host} ({self.node[:12]}); its docker commands there with DOCKER_HOST="
+                f"{self.engine} (`jarvis cleanup` reaches it from here with --ray):\n{text}")
 
     def close(self) -> None:
         """Remove the environment on its node and give back the room it held (idempotent; never raises: a lost
