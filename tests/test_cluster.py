@@ -164,6 +164,11 @@ def cluster(device_images):
 def test_a_cluster_of_two_nodes_runs_a_sample_as_here_and_outlives_a_lost_node(cluster, tmp_path):
     """One test (xdist would give two tests of the module to two workers, each starting the cluster): the sample,
     then the node loss on the same cluster."""
+    status = subprocess.run([sys.executable, "-m", "jarvis_pytest.cli", "cluster", "status", "--ray", cluster.address],
+                            cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert status.returncode == 0 and f"{cluster.address}: 2 node(s) offering devices" in status.stdout, \
+        status.stdout + status.stderr
+    assert all(f"{node[:12]} " in status.stdout for node in cluster.nodes) and f"{SLOTS} device slots" in status.stdout
     started = time.monotonic()
     sample_runs_on_two_nodes_as_it_runs_here(cluster, tmp_path)
     print(f"sample on the cluster and here: {time.monotonic() - started:.1f} s", file=sys.stderr)
