@@ -2,7 +2,7 @@
 one machine (`acquire(platforms)`, `prewarm(platforms)`, `close()`), with each environment on a node.
 
 Where: a task's devices need room on one node: one `jarvis_device_slots` per device, the Ray `memory` its devices
-and drive hold once booted (`Lifecycle.booted_memory_mb`), and `kvm` when a backend runs KVM guests. The head asks
+and drive hold once booted (`lifecycle.booted_memory_mb`), and `kvm` when a backend runs KVM guests. The head asks
 Ray for that room as a one-bundle placement group, so Ray's scheduler picks the node and holds the room until the
 task's environment is closed (a pre-warm holds its own). On that node, the pytest worker's agent (`node.py`,
 one actor per worker and node, made on first use, pinned there) boots the environment with the local code.
@@ -74,10 +74,11 @@ class ClusterEnvironments:
     # -- room on a node -------------------------------------------------------------------------------------
     def room(self, platforms: tuple[str, ...]) -> dict[str, float]:
         """The resources one environment of `platforms` holds on its node."""
+        from jarvis_pytest.environments.lifecycle import booted_memory_mb
         from jarvis_pytest.infra.transfer_server import transfer_server
 
         backends = [self.backends.backend(p) for p in dict.fromkeys(platforms)]
-        memory_mb = sum(b.booted_memory_mb for b in backends) + transfer_server(self.settings.get("transfer")).booted_memory_mb
+        memory_mb = booted_memory_mb(backends, transfer_server(self.settings.get("transfer")))
         room = {DEVICE_SLOTS: float(len(backends)), "memory": float(memory_mb * 2**20)}
         if any(needs_kvm(b) for b in backends):
             room[KVM] = 1.0
@@ -90,7 +91,7 @@ class ClusterEnvironments:
 
         room = self.room(platforms)
         nodes = require_nodes(self.ray, self.address)
-        if not any(all(n.resources.get(k, 0) >= v for k, v in room.items()) for n in nodes):
+        if not _any_fits(room, nodes):
             raise InfrastructureError(
                 f"no node of the Ray cluster at {self.address} can hold the devices of {list(platforms)} (they need "
                 f"{_room_text(room)}; the nodes offer {'; '.join(_room_text(n.resources) for n in nodes)}): start "
@@ -105,9 +106,7 @@ class ClusterEnvironments:
             ready, _ = self.ray.wait([pg.ready()], timeout=5)
             if ready:
                 break
-            if time.monotonic() > deadline or not any(
-                    all(n.resources.get(k, 0) >= v for k, v in room.items())
-                    for n in require_nodes(self.ray, self.address)):
+            if time.monotonic() > deadline or not _any_fits(room, require_nodes(self.ray, self.address)):
                 remove_placement_group(pg)
                 raise InfrastructureError(f"no Ray node had room for the devices of {list(platforms)} "
                                           f"({_room_text(room)}) within {PLACEMENT_TIMEOUT:g} s")
@@ -313,6 +312,11 @@ class ClusterEnvironments:
                 self.ray.kill(link.actor)
             except Exception:
                 pass
+
+
+def _any_fits(room: dict[str, float], nodes: list[Any]) -> bool:
+    """Whether some node declares at least `room` in all (busy or not: it could hold it once free)."""
+    return any(all(n.resources.get(k, 0) >= v for k, v in room.items()) for n in nodes)
 
 
 def _room_text(resources: dict[str, float]) -> str:

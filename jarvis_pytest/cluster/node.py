@@ -90,6 +90,7 @@ class NodeAgent:
         self.settings = settings
         self.docker = client(timeout=1800)  # the node's engine ($DOCKER_HOST of `ray start`)
         self.envs: dict[str, Any] = {}
+        self.object_readers: dict[str, Any] = {}  # environment → its drive's reader of kept bytes (`drive_events`)
         self.lock = threading.Lock()
         self._pool: Any = None
         self._image: dict[str, Any] | None = None
@@ -157,22 +158,25 @@ class NodeAgent:
         return outcome(lambda: self.envs[env_id].mark_drive())
 
     def drive_events(self, env_id: str) -> tuple[str, Any]:
-        """The drive's ledger text (None when it keeps none)."""
+        """The drive's ledger text (None when it keeps none); its reader of kept bytes is kept for `drive_object`."""
         def read():
             ledger = self.envs[env_id].drive_ledger()
-            return None if ledger is None else ledger[0]
+            if ledger is None:
+                return None
+            self.object_readers[env_id] = ledger[1]
+            return ledger[0]
         return outcome(read)
 
     def drive_object(self, env_id: str, sha: str) -> tuple[str, Any]:
-        def read():
-            ledger = self.envs[env_id].drive_ledger()
-            return None if ledger is None else ledger[1](sha)
-        return outcome(read)
+        """The bytes the drive kept by SHA-256, read by the reader `drive_events` handed out (the ledger is not read
+        again for each object)."""
+        return outcome(lambda: self.object_readers[env_id](sha))
 
     def release(self, env_id: str, keep: bool = False) -> str:
         """Close the environment (or, `keep`, leave it running and say how to reach it); never raises."""
         with self.lock:
             env = self.envs.pop(env_id, None)
+            self.object_readers.pop(env_id, None)
         if env is None:
             return ""
         if keep:

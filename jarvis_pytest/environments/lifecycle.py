@@ -176,6 +176,11 @@ def device_provenance(backend: Backend) -> dict[str, Any]:
         return {"unknown": f"{exc.__class__.__name__}: {str(exc)[:200]}"}
 
 
+def booted_memory_mb(backends: list[Backend], server: TransferServer) -> int:
+    """About what a freshly booted environment holds: one device of each backend, and the drive of `server`."""
+    return sum(b.booted_memory_mb for b in backends) + server.booted_memory_mb
+
+
 class Lifecycle:
     """Creates task environments for one run and worker.
 
@@ -218,7 +223,7 @@ class Lifecycle:
 
     def booted_memory_mb(self, platforms: tuple[str, ...] | list[str]) -> int:
         """About what a freshly booted environment of `platforms` holds: its devices and its drive."""
-        return sum(self.backend(p).booted_memory_mb for p in dict.fromkeys(platforms)) + self.server.booted_memory_mb
+        return booted_memory_mb([self.backend(p) for p in dict.fromkeys(platforms)], self.server)
 
     def _ensure_image(self, image: str, pull: bool) -> None:
         import docker.errors
